@@ -1,0 +1,208 @@
+"""Implicit time stepping with PETSc SNES: adaptive steps, cuts on failure, clear errors.
+
+Every step solves the full nonlinear system R(u_{n+1}; u_n, Δt) = 0 (backward Euler in the
+history terms) with Newton's method. The step grows while Newton converges easily and is cut
+when it fails (divergence, NaN, inverted or over-compacted elements); after `max_cuts` cuts in
+a row the run stops with a message that says when, where and why. Forms are compiled once:
+time, step size and loads are `fem.Constant`s that the problem updates in place.
+"""
+
+from __future__ import annotations
+
+import math
+import time as wallclock
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from typing import Protocol
+
+import dolfinx.fem.petsc
+import numpy as np
+from dolfinx import fem
+from petsc4py import PETSc
+
+from .errors import ConvergenceError, FingertipError
+from .loading import step_times
+
+#: Newton with a backtracking line search and a direct solve (MUMPS): robust for contact and
+#: for the saddle-point structure of the undrained tissue. Users override any of these.
+DEFAULT_PETSC_OPTIONS = {
+    "snes_type": "newtonls",
+    "snes_linesearch_type": "bt",
+    "snes_rtol": 1e-9,
+    "snes_atol": 1e-10,
+    "snes_stol": 0.0,
+    "snes_max_it": 25,
+    "ksp_type": "preonly",
+    "pc_type": "lu",
+    "pc_factor_mat_solver_type": "mumps",
+}
+
+_SNES_REASONS = {
+    getattr(PETSc.SNES.ConvergedReason, name): name
+    for name in dir(PETSc.SNES.ConvergedReason)
+    if not name.startswith("_") and isinstance(getattr(PETSc.SNES.ConvergedReason, name), int)
+}
+
+
+class Steppable(Protocol):
+    """What the time stepper needs from a problem (forms.FingertipProblem is one)."""
+
+    residuals: list  # UFL forms, one per unknown
+    unknowns: list[fem.Function]
+    bcs: list[fem.DirichletBC]
+    entity_maps: list | None
+    dt: fem.Constant
+
+    def set_time(self, t: float) -> None:
+        """Move the loads (indenter positions, boundary values) to time t."""
+
+    def accept(self) -> None:
+        """Take the converged state as the new history (u_n, internal variables)."""
+
+    def restore(self) -> None:
+        """Return the unknowns to the last accepted state (after a failed attempt)."""
+
+    def inadmissible(self) -> str | None:
+        """Why the converged state cannot be accepted (inverted elements, ...), or None."""
+
+    def diagnostics(self) -> dict[str, float]:
+        """Per-step quantities to report: force, penetration, min J, ..."""
+
+
+@dataclass
+class StepOptions:
+    """Adaptive time-step control (times in s)."""
+
+    dt_initial: float = 0.1
+    dt_min: float = 1e-5
+    dt_max: float = 10.0
+    growth: float = 1.5  # factor after an easy step
+    cut: float = 0.5  # factor after a failed attempt
+    max_cuts: int = 8  # failed attempts in a row before giving up
+    easy_iterations: int = 5  # a step with at most this many Newton iterations is easy
+
+    def __post_init__(self):
+        if not 0 < self.dt_min <= self.dt_initial <= self.dt_max:
+            raise ValueError("need 0 < dt_min <= dt_initial <= dt_max")
+        if not (self.growth >= 1 and 0 < self.cut < 1 and self.max_cuts >= 0):
+            raise ValueError("need growth >= 1, 0 < cut < 1, max_cuts >= 0")
+
+
+@dataclass
+class StepReport:
+    step: int
+    time: float
+    dt: float
+    load: float
+    newton_iterations: int
+    cuts: int
+    wall_time_s: float
+    diagnostics: dict[str, float] = field(default_factory=dict)
+
+    def row(self) -> dict[str, float]:
+        row = asdict(self)
+        row.update(row.pop("diagnostics"))
+        return row
+
+
+class TimeStepper:
+    """Drives a `Steppable` problem along a load history with adaptive backward-Euler steps."""
+
+    def __init__(
+        self,
+        problem: Steppable,
+        options: StepOptions | None = None,
+        petsc_options: dict | None = None,
+        prefix: str = "fingertip_",
+    ):
+        self.problem = problem
+        self.options = options or StepOptions()
+        opts = {**DEFAULT_PETSC_OPTIONS, **(petsc_options or {})}
+        # One NonlinearProblem for the whole run: its forms are compiled here, once.
+        self.nonlinear = dolfinx.fem.petsc.NonlinearProblem(
+            problem.residuals,
+            problem.unknowns,
+            bcs=problem.bcs,
+            entity_maps=problem.entity_maps,
+            kind="mpi",
+            petsc_options_prefix=prefix,
+            petsc_options=opts,
+        )
+        self.snes = self.nonlinear.solver
+
+    def solve_once(self) -> tuple[int, int]:
+        """One Newton solve from the current state; returns (converged reason, iterations)."""
+        with np.errstate(all="ignore"):
+            self.nonlinear.solve()
+        return self.snes.getConvergedReason(), self.snes.getIterationNumber()
+
+    def run(
+        self,
+        history: Callable[[float], float],
+        end_time: float,
+        *,
+        start_time: float = 0.0,
+        breakpoints: Sequence[float] = (),
+        on_step: Callable[[StepReport], None] | None = None,
+    ) -> list[StepReport]:
+        """Step from `start_time` to `end_time`, landing exactly on every breakpoint.
+
+        `history(t)` is the load reported per step (e.g. indenter displacement); the problem's
+        own `set_time` applies it. `on_step` is called after every accepted step, so results
+        are written as they come and survive a later failure.
+        """
+        opts, problem = self.options, self.problem
+        marks = sorted({*getattr(history, "breakpoints", ()), *breakpoints, end_time})
+        t, dt, step = start_time, opts.dt_initial, 0
+        reports: list[StepReport] = []
+        while t < end_time - 1e-12 * max(1.0, end_time):
+            started = wallclock.perf_counter()
+            cuts, why = 0, ""
+            while True:
+                t_new = step_times(marks, t, dt, end_time)
+                problem.dt.value = t_new - t
+                problem.set_time(t_new)
+                reason, iterations = self.solve_once()
+                if reason > 0:
+                    why = problem.inadmissible() or ""
+                    if not why:
+                        break
+                else:
+                    why = f"Newton did not converge ({_SNES_REASONS.get(reason, reason)})"
+                problem.restore()
+                cuts += 1
+                dt = (t_new - t) * opts.cut
+                if cuts > opts.max_cuts or dt < opts.dt_min:
+                    problem.set_time(t)
+                    raise ConvergenceError(
+                        f"the step from t = {t:.6g} s to t = {t_new:.6g} s (load "
+                        f"{history(t):.6g} -> {history(t_new):.6g}) failed {cuts} times, the last "
+                        f"with Δt = {t_new - t:.3g} s: {why}. Results up to t = {t:.6g} s are "
+                        "saved. Fix: lower the load or its rate, refine the mesh where it fails, "
+                        "or allow smaller steps (dt_min, max_cuts)."
+                    )
+            problem.accept()
+            step += 1
+            report = StepReport(
+                step=step,
+                time=t_new,
+                dt=t_new - t,
+                load=history(t_new),
+                newton_iterations=iterations,
+                cuts=cuts,
+                wall_time_s=wallclock.perf_counter() - started,
+                diagnostics=problem.diagnostics(),
+            )
+            reports.append(report)
+            if on_step is not None:
+                on_step(report)
+            # Grow after easy steps, keep the size after hard ones (cuts already shrank it).
+            taken = t_new - t
+            t = t_new
+            if cuts == 0 and iterations <= opts.easy_iterations:
+                dt = min(max(dt, taken) * opts.growth, opts.dt_max)
+            else:
+                dt = min(taken, opts.dt_max)
+            if not math.isfinite(dt) or dt <= 0:
+                raise FingertipError(f"time step became {dt} at t = {t}")
+        return reports

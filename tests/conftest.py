@@ -1,0 +1,35 @@
+"""Shared fixtures; MPI-aware: every rank runs each test, only rank 0 reports."""
+
+from pathlib import Path
+
+import pytest
+
+import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel before dolfinx is imported)
+from mpi4py import MPI
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def pytest_configure(config):
+    if MPI.COMM_WORLD.size > 1 and MPI.COMM_WORLD.rank != 0:
+        # One report is enough: silence the other ranks' terminal output.
+        reporter = config.pluginmanager.get_plugin("terminalreporter")
+        if reporter is not None:
+            config.pluginmanager.unregister(reporter)
+
+
+@pytest.fixture(scope="session")
+def comm():
+    return MPI.COMM_WORLD
+
+
+@pytest.fixture(scope="session")
+def repo_root() -> Path:
+    return REPO
+
+
+@pytest.fixture
+def shared_tmp_path(tmp_path_factory, comm):
+    """A temporary directory that is the same on every rank (rank 0 creates it)."""
+    path = tmp_path_factory.mktemp("shared") if comm.rank == 0 else None
+    return Path(comm.bcast(str(path) if path else None, root=0))
