@@ -10,6 +10,7 @@ time, step size and loads are `fem.Constant`s that the problem updates in place.
 from __future__ import annotations
 
 import math
+from collections import deque
 import time as wallclock
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
@@ -79,7 +80,10 @@ class StepOptions:
     growth: float = 1.5  # factor after an easy step
     cut: float = 0.5  # factor after a failed attempt
     max_cuts: int = 8  # failed attempts in a row before giving up
-    easy_iterations: int = 5  # a step with at most this many Newton iterations is easy
+    easy_iterations: int = 6  # a step with at most this many Newton iterations is easy
+    #: Start Newton from the linear extrapolation of the last two states (not across a kink
+    #: of the load history): in a ramp this removes most of the iterations.
+    extrapolate: bool = True
 
     def __post_init__(self):
         if not 0 < self.dt_min <= self.dt_initial <= self.dt_max:
@@ -155,6 +159,8 @@ class TimeStepper:
         marks = sorted({*getattr(history, "breakpoints", ()), *breakpoints, end_time})
         t, dt, step = start_time, opts.dt_initial, 0
         reports: list[StepReport] = []
+        # The last two accepted states (time, unknowns), for the predictor.
+        states = deque([(t, [f.x.array.copy() for f in problem.unknowns])], maxlen=2)
         while t < end_time - 1e-12 * max(1.0, end_time):
             started = wallclock.perf_counter()
             cuts, why = 0, ""
@@ -162,6 +168,8 @@ class TimeStepper:
                 t_new = step_times(marks, t, dt, end_time)
                 problem.dt.value = t_new - t
                 problem.set_time(t_new)
+                if opts.extrapolate and len(states) == 2 and not _is_mark(t, marks):
+                    _extrapolate(problem.unknowns, states, t_new)
                 reason, iterations = self.solve_once()
                 if reason > 0:
                     why = problem.inadmissible() or ""
@@ -182,6 +190,7 @@ class TimeStepper:
                         "or allow smaller steps (dt_min, max_cuts)."
                     )
             problem.accept()
+            states.append((t_new, [f.x.array.copy() for f in problem.unknowns]))
             step += 1
             report = StepReport(
                 step=step,
@@ -206,3 +215,15 @@ class TimeStepper:
             if not math.isfinite(dt) or dt <= 0:
                 raise FingertipError(f"time step became {dt} at t = {t}")
         return reports
+
+
+def _is_mark(t: float, marks: Sequence[float]) -> bool:
+    return any(abs(t - m) <= 1e-12 * max(1.0, abs(m)) for m in marks)
+
+
+def _extrapolate(unknowns: list[fem.Function], states: deque, t_new: float) -> None:
+    """Set the unknowns to the linear extrapolation through the last two accepted states."""
+    (t0, old), (t1, last) = states
+    c = (t_new - t1) / (t1 - t0)
+    for f, a, b in zip(unknowns, old, last):
+        f.x.array[:] = b + c * (b - a)

@@ -1,0 +1,137 @@
+"""The `fingertip` command: one subcommand per job (`fingertip mesh`, later `run`, `sweep`, ...).
+
+To add a subcommand, write `_add_<name>(subparsers)` that builds its parser and sets
+`handler=<function(args) -> exit code>`, and list it in `COMMANDS`. Handlers import the heavy
+modules (DOLFINx) themselves, so that `fingertip --help` stays instant. A `FingertipError`
+raised anywhere becomes a one-line message and exit status 2 (1 for a failed computation).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+from pathlib import Path
+
+from .errors import FingertipError, InputError
+
+
+def _add_mesh(subparsers) -> None:
+    p = subparsers.add_parser(
+        "mesh",
+        help="build the tagged fingertip mesh; write XDMF, a PNG picture and a JSON report",
+        description="Mesh a fingertip section and write DIR/mesh.xdmf (+ .h5, with cell and "
+        "facet tags), DIR/mesh.png (regions and boundary tags) and DIR/mesh_report.json "
+        "(element count, quality, region areas against their exact values).",
+    )
+    p.add_argument(
+        "--section", default="male-index", metavar="NAME_OR_TOML",
+        help="built-in section name (in geometry/fingertip/) or a TOML file (default: %(default)s)",
+    )
+    p.add_argument(
+        "--min-size", type=float, metavar="H",
+        help="element size (mm) in the refinement zone under the pulp (default: the file's [mesh])",
+    )
+    p.add_argument(
+        "--max-size", type=float, metavar="H",
+        help="element size (mm) elsewhere in the soft tissue and nail (default: the file's [mesh])",
+    )
+    p.add_argument(
+        "--quad", action="store_true",
+        help="recombine into quadrilaterals (for Q2/Q1) instead of triangles",
+    )
+    p.add_argument("--out", required=True, type=Path, metavar="DIR", help="output directory")
+    p.set_defaults(handler=_run_mesh)
+
+
+COMMANDS = [_add_mesh]
+
+
+def _run_mesh(args) -> int:
+    from rich.console import Console
+    from rich.table import Table
+
+    from .figures import plot_tagged_mesh
+    from .geometry import load_section
+    from .mesh import build_mesh, report_dict, write_xdmf
+    from mpi4py import MPI
+
+    comm = MPI.COMM_WORLD
+    section = _with_mesh_options(
+        load_section(args.section),
+        {"min_size": args.min_size, "max_size": args.max_size, "quadrilateral": args.quad or None},
+    )
+    console = Console(stderr=True, quiet=comm.rank != 0)
+    with console.status("meshing") as status:
+        fm = build_mesh(section, comm, progress=lambda message: status.update(message))
+        status.update("writing the mesh, picture and report")
+        if comm.rank == 0:
+            args.out.mkdir(parents=True, exist_ok=True)
+        comm.barrier()
+        write_xdmf(fm, args.out / "mesh.xdmf")
+        plot_tagged_mesh(fm, args.out / "mesh.png", title=f"section '{section.name}'")
+        report = report_dict(fm, section)
+    if comm.rank == 0:
+        (args.out / "mesh_report.json").write_text(json.dumps(report, indent=2) + "\n")
+
+    r = fm.report
+    table = Table(title=f"mesh of '{section.name}' ({r.seconds:.2f} s on rank 0)")
+    for column in ("region", "area (mm²)", "exact (mm²)", "relative error"):
+        table.add_column(column, justify="right")
+    for name, a in report["areas_mm2"].items():
+        table.add_row(name, f"{a['mesh']:.6f}", f"{a['exact']:.6f}", f"{a['relative_error']:+.2e}")
+    console.print(table)
+    console.print(
+        f"{r.num_cells} {r.cell_type}s, {r.num_vertices} vertices; quality (minSICN) "
+        f"min {r.min_quality:.3f}, mean {r.mean_quality:.3f}; edges {r.min_edge:.4f}–"
+        f"{r.max_edge:.4f} mm\nwrote {args.out}/mesh.xdmf (+ .h5), mesh.png, mesh_report.json"
+    )
+    return 0
+
+
+def _with_mesh_options(section, given: dict):
+    """`section` with the mesh options given on the command line (None: keep the file's)."""
+    given = {key: value for key, value in given.items() if value is not None}
+    try:
+        return dataclasses.replace(section, mesh=dataclasses.replace(section.mesh, **given))
+    except InputError as e:
+        options = " ".join(f"--{k.replace('_', '-')} {v}" for k, v in given.items())
+        raise InputError(f"{options} ({e.where})", e.problem, e.fix) from None
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="fingertip",
+        description="Finite-strain fingertip biomechanics (skin, subcutaneous tissue, bone, "
+        "nail) under rigid indenters, in FEniCSx. Units: mm, N, s, MPa.",
+    )
+    subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for add in COMMANDS:
+        add(subparsers)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line `argv` (default: sys.argv[1:]); return the exit status."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as e:  # --help (0) or a malformed command line (2, message printed)
+        return int(e.code or 0)
+    try:
+        return args.handler(args)
+    except FingertipError as e:
+        _rank0_print(f"fingertip {args.command}: error: {e}")
+        return 2 if isinstance(e, InputError) else 1
+
+
+def _rank0_print(message: str) -> None:
+    from mpi4py import MPI
+
+    if MPI.COMM_WORLD.rank == 0:
+        print(message, file=sys.stderr)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,202 @@
+"""Frictionless Nitsche contact of the body's surface with rigid indenters, at finite strain.
+
+Total Lagrangian: integrals over the reference surface (the `ds` passed in), gap and normal at
+the current position x = X + u. With t = P N the nominal traction and, per indenter, g = φ(x) the
+signed distance, n = ∇φ(x) its normal (pointing from the indenter into the body) and
+t_n = t·n the normal traction (> 0 in compression), the contact conditions
+
+    g ≥ 0,   t_n ≥ 0,   t_n g = 0,   tangential traction 0
+
+are equivalent, for any γ > 0, to t_n = [t_n − γ g]_+ (Chouly & Hild, SINUM 51, 2013). Nitsche's
+method puts the right-hand side, the contact pressure p = [t_n − γ g]_+, into the weak form:
+
+    R(u; v) = ∫ P:∇v dx − ∫ p (n·v) ds + θ/γ ∫ (p − t_n) δt_n[v] ds,   γ = γ0 M / h,
+
+with δt_n[v] the derivative of t_n along v. θ = 0 (default) drops the consistency term: only
+the pressure term remains, and it was the variant that converged robustly in probe runs (θ = 1,
+symmetric, diverged; θ = −1, skew, inverted elements). M is a stiffness scale: the P-wave
+modulus λ + 2μ, not E, since nearly incompressible tissue is stiffer to a normal push than E
+says. The method is consistent, so the solution does not depend on γ0 as a penalty's would;
+γ0 ~ 10 is enough, γ0 ≥ 100 made Newton chatter on the active set.
+
+Several indenters act as one obstacle, their union: each surface point takes the gap and normal
+of the nearest indenter. Its force counts towards that indenter.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+import ufl
+from dolfinx import fem, mesh as dmesh
+from mpi4py import MPI
+
+from .errors import InputError
+from .indenters import Indenter
+
+
+def p_wave_modulus(E, nu):
+    """λ + 2μ = E (1 − ν) / ((1 + ν)(1 − 2ν)): the stiffness of a laterally confined push."""
+    return E * (1 - nu) / ((1 + nu) * (1 - 2 * nu))
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """An indenter in the scene: the loading moves it by setting `y_tip.value`."""
+
+    indenter: Indenter
+    y_tip: fem.Constant
+
+    @classmethod
+    def at(cls, domain: dmesh.Mesh, indenter: Indenter, y_tip: float = 0.0) -> Obstacle:
+        return cls(indenter, fem.Constant(domain, float(y_tip)))
+
+
+class NitscheContact:
+    """The contact terms of the surface `ds` (e.g. `ds(PULP_SURFACE)`) against `obstacles`.
+
+    `P` is the first Piola–Kirchhoff stress as a UFL expression of `u` (a displacement Function
+    of its own, not a subfunction); `modulus` is M in γ = γ0 M / h (a number or UFL, per cell);
+    `h` defaults to the cell diameter; the surface quadrature degree to 2 k + 2 for
+    displacements of degree k. Forms are built once; moving an obstacle only changes its
+    `y_tip` Constant.
+    """
+
+    def __init__(
+        self,
+        u: fem.Function,
+        P: ufl.core.expr.Expr,
+        ds: ufl.Measure,
+        obstacles: Sequence[Obstacle],
+        *,
+        modulus,
+        theta: int = 0,
+        gamma0: float = 10.0,
+        h=None,
+        quadrature_degree: int | None = None,
+    ):
+        if theta not in (-1, 0, 1):
+            raise InputError(
+                "contact.theta", f"got {theta}.",
+                "use 0 (default, robust), 1 (symmetric) or -1 (skew-symmetric).",
+            )
+        if not gamma0 > 0:
+            raise InputError("contact.gamma0", f"must be positive, got {gamma0}.", "use ~10.")
+        if not obstacles:
+            raise InputError("contact", "no indenter given.", "give at least one Obstacle.")
+        domain = u.function_space.mesh
+        # A fixed rule: UFL's estimate for these non-polynomial terms is huge and differs
+        # between the residual and its derivative, which makes the Jacobian inexact.
+        degree = quadrature_degree or 2 * u.function_space.ufl_element().embedded_superdegree + 2
+        self.u, self.ds, self.theta = u, ds(degree=degree), theta
+        self.obstacles = tuple(obstacles)
+        h = ufl.CellDiameter(domain) if h is None else h
+        self.gamma = gamma0 * modulus / h
+        x = ufl.SpatialCoordinate(domain) + u
+        t = P * ufl.FacetNormal(domain)
+        gaps, self._normals, self._tn = [], [], []
+        for obstacle in self.obstacles:
+            g, n = obstacle.indenter.signed_distance(x, obstacle.y_tip)
+            gaps.append(g)
+            self._normals.append(n)
+            self._tn.append(ufl.dot(t, n))
+        self._pressures = [
+            ufl.max_value(tn - self.gamma * g, 0.0) for tn, g in zip(self._tn, gaps)
+        ]
+        self._nearest = _nearest_indicators(gaps)
+        #: t_n − γ g, the pressure before clipping: > 0 exactly where contact is active, so its
+        #: zero level is the edge of the contact zone.
+        self.trial_pressure = sum(
+            c * (tn - self.gamma * g) for c, tn, g in zip(self._nearest, self._tn, gaps)
+        )
+        #: The Nitsche contact pressure [t_n − γ g]_+ on the surface (MPa, > 0 in compression).
+        self.pressure = sum(c * p for c, p in zip(self._nearest, self._pressures))
+
+    def _term(self, i: int, v) -> ufl.Form:
+        """Indenter i's share of the residual, tested with v (an Argument or a Function)."""
+        p, n, tn = self._pressures[i], self._normals[i], self._tn[i]
+        integrand = -p * ufl.dot(n, v)
+        if self.theta:
+            integrand += self.theta / self.gamma * (p - tn) * ufl.derivative(tn, self.u, v)
+        return self._nearest[i] * integrand * self.ds
+
+    def residual(self, v) -> ufl.Form:
+        """The contact contribution to the residual: add it to ∫ P:∇v dx."""
+        return sum(self._term(i, v) for i in range(len(self.obstacles)))
+
+    @cached_property
+    def _force_forms(self) -> list[fem.Form]:
+        # The residual tested with the rigid translation e_y: the interior term ∫ P:∇e_y dx
+        # vanishes, so at a converged state this force balances the supports' reactions to
+        # solver precision, for every θ (for θ = 0 it is ∫ p n_y ds).
+        V = self.u.function_space
+        e_y = fem.Function(V)
+        e_y.interpolate(lambda x: np.vstack((np.zeros_like(x[0]), np.ones_like(x[0]))))
+        return [fem.form(-self._term(i, e_y)) for i in range(len(self.obstacles))]
+
+    def forces(self) -> np.ndarray:
+        """The y-force each indenter exerts on the body (N/mm in plane strain; > 0 pushes +y)."""
+        comm = self.u.function_space.mesh.comm
+        local = [fem.assemble_scalar(f) for f in self._force_forms]
+        return np.array(comm.allreduce(np.array(local, dtype=float), op=MPI.SUM))
+
+    @cached_property
+    def facets(self) -> np.ndarray:
+        """The (local) facets of the contact surface, from the tags and id of `ds`."""
+        domain = self.u.function_space.mesh
+        fdim = domain.topology.dim - 1
+        domain.topology.create_connectivity(fdim, fdim + 1)
+        sid, tags = self.ds.subdomain_id(), self.ds.subdomain_data()
+        if sid == "everywhere" or tags is None:
+            return dmesh.exterior_facet_indices(domain.topology)
+        ids = sid if isinstance(sid, tuple) else (sid,)
+        return np.unique(np.concatenate([tags.find(i) for i in ids]))
+
+    def max_penetration(self) -> float:
+        """Deepest that a displacement node of the surface lies inside any indenter (mm)."""
+        V, u = self.u.function_space, self.u
+        fdim = V.mesh.topology.dim - 1
+        nodes = fem.locate_dofs_topological(V, fdim, self.facets)
+        nodes = nodes[nodes < V.dofmap.index_map.size_local]  # owned: each node counted once
+        bs = V.dofmap.index_map_bs
+        x = V.tabulate_dof_coordinates()[nodes, :2] + u.x.array.reshape(-1, bs)[nodes, :2]
+        depth = max(
+            (float(np.max(-o.indenter.signed_distance_np(x, o.y_tip.value)[0], initial=0.0))
+             for o in self.obstacles),
+        )
+        return V.mesh.comm.allreduce(depth, op=MPI.MAX)
+
+    def sample(self, expr, points_per_facet: int = 5) -> tuple[np.ndarray, np.ndarray]:
+        """`expr` (e.g. `self.pressure`) at points on this rank's owned surface facets.
+
+        Returns the reference coordinates X (m, 2) of the points and the values (m,); the
+        points of different ranks do not overlap. Facet ends are included (shared points appear
+        once per facet, each with its own cell's value: the field may jump there).
+        """
+        domain = self.u.function_space.mesh
+        tdim = domain.topology.dim
+        domain.topology.create_connectivity(tdim, tdim - 1)
+        entities = fem.compute_integration_domains(
+            fem.IntegralType.exterior_facet, domain.topology, self.facets
+        ).reshape(-1, 2)
+        X = ufl.SpatialCoordinate(domain)
+        points = np.linspace(0.0, 1.0, points_per_facet)[:, None]
+        values = fem.Expression(ufl.as_vector((X[0], X[1], expr)), points).eval(domain, entities)
+        values = values.reshape(-1, 3)
+        return values[:, :2], values[:, 2]
+
+
+def _nearest_indicators(gaps: list) -> list:
+    """χ_i = 1 where indenter i is the nearest (ties to the lower index), else 0."""
+    indicators = []
+    for i, gi in enumerate(gaps):
+        chi = 1.0
+        for j, gj in enumerate(gaps):
+            if j != i:
+                closer = ufl.lt(gi, gj) if j < i else ufl.le(gi, gj)
+                chi = chi * ufl.conditional(closer, 1.0, 0.0)
+        indicators.append(chi)
+    return indicators

@@ -1,0 +1,233 @@
+"""Rigid indenters: shapes as validated data, with exact signed distances in UFL and numpy.
+
+An indenter sits below the pulp with its tip (highest point) at height `y_tip` and moves in +y.
+Each shape gives the signed distance φ(x) (positive outside the indenter) and its outward unit
+normal n = ∇φ, written once against a tiny backend (`_Ops`) so that the UFL form used in the
+contact terms and the numpy version used to measure penetration are the same formula.
+
+Round-tipped shapes are dilations: a sharp core (a point, a downward ray, a downward cone) grown
+by the tip radius r. For a convex core K, SDF(K ⊕ disc_r) = SDF(K) − r exactly, inside and out,
+so the round tip is exact, not smoothed. The flanks run down without end: the base only sets the
+flank angle, and no part of a finger ever reaches the indenter's body below it.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from collections.abc import Callable
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+import ufl
+
+from .errors import InputError
+
+#: The built-in indenters, loadable by name (`load_indenter("wedge")`).
+BUILTIN_DIR = Path(__file__).resolve().parents[1] / "geometry" / "indenters"
+
+
+@dataclass(frozen=True)
+class _Ops:
+    """The few operations the distance formulas need, for one backend."""
+
+    where: Callable
+    sqrt: Callable
+    abs: Callable
+    sign: Callable
+
+
+_NUMPY = _Ops(np.where, np.sqrt, np.abs, np.sign)
+_UFL = _Ops(ufl.conditional, ufl.sqrt, abs, ufl.sign)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Indenter:
+    """Base class: a rigid shape whose highest point is at (centre_x, y_tip)."""
+
+    centre_x: float = 0.0
+    shape: ClassVar[str]
+
+    def __post_init__(self):
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise InputError(f"{self.shape}.{f.name}", f"must be a number, got {value!r}.")
+            if not math.isfinite(value):
+                raise InputError(f"{self.shape}.{f.name}", f"must be finite, got {value}.")
+            if f.name != "centre_x" and value <= 0:
+                raise InputError(
+                    f"{self.shape}.{f.name}", f"must be positive (mm), got {value}.",
+                    "give the size in mm as a positive number.",
+                )
+
+    def _distance(self, px, py, y_tip, ops: _Ops):
+        """(φ, n_x, n_y) at the point (px, py), components in the backend `ops`."""
+        raise NotImplementedError
+
+    def signed_distance(self, x, y_tip) -> tuple[ufl.core.expr.Expr, ufl.core.expr.Expr]:
+        """UFL (φ, n) at the current position `x` (a UFL 2-vector, e.g. X + u).
+
+        `y_tip` is a `fem.Constant` (or a number): moving the indenter never recompiles a form.
+        """
+        phi, nx, ny = self._distance(x[0], x[1], y_tip, _UFL)
+        return phi, ufl.as_vector((nx, ny))
+
+    def signed_distance_np(self, points, y_tip: float) -> tuple[np.ndarray, np.ndarray]:
+        """numpy (φ of shape (m,), n of shape (m, 2)) at `points` of shape (m, 2 or 3)."""
+        p = np.asarray(points, dtype=float)
+        with np.errstate(divide="ignore", invalid="ignore"):  # branches np.where discards
+            phi, nx, ny = self._distance(p[:, 0], p[:, 1], float(y_tip), _NUMPY)
+        return phi, np.column_stack(np.broadcast_arrays(nx, ny))
+
+
+def penetration(indenter: Indenter, points, y_tip: float) -> np.ndarray:
+    """How deep each point lies inside the indenter (0 outside), in mm."""
+    phi, _ = indenter.signed_distance_np(points, y_tip)
+    return np.maximum(-phi, 0.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Plate(Indenter):
+    """A flat rigid plate filling y < y_tip (centre_x plays no part)."""
+
+    shape: ClassVar[str] = "plate"
+
+    def _distance(self, px, py, y_tip, ops):
+        return py - y_tip, 0.0 * px, 0.0 * px + 1.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class Cylinder(Indenter):
+    """A rigid cylinder (a disc in the section) of the given radius."""
+
+    radius: float
+    shape: ClassVar[str] = "cylinder"
+
+    def _distance(self, px, py, y_tip, ops):
+        dx, dy = px - self.centre_x, py - (y_tip - self.radius)
+        d = ops.sqrt(dx * dx + dy * dy)
+        return d - self.radius, dx / d, dy / d
+
+
+@dataclass(frozen=True, kw_only=True)
+class _RoundCone(Indenter):
+    """A downward cone of half-angle α (a ray if α = 0) dilated by the tip radius r."""
+
+    def _tip(self) -> tuple[float, float]:
+        """(r, α) of the shape."""
+        raise NotImplementedError
+
+    def _distance(self, px, py, y_tip, ops):
+        r, alpha = self._tip()
+        s, c = math.sin(alpha), math.cos(alpha)
+        # Relative to the tip circle's centre, folded onto the right half (the shape is even).
+        side = ops.sign(px - self.centre_x)
+        qx, qy = ops.abs(px - self.centre_x), py - (y_tip - r)
+        along = qx * s - qy * c  # > 0: nearest core point is on the right flank, not the apex
+        to_centre = ops.sqrt(qx * qx + qy * qy)
+        phi = ops.where(along > 0, qx * c + qy * s, to_centre) - r
+        nx = side * ops.where(along > 0, c, qx / to_centre)
+        ny = ops.where(along > 0, s, qy / to_centre)
+        return phi, nx, ny
+
+
+@dataclass(frozen=True, kw_only=True)
+class Wedge(_RoundCone):
+    """A symmetric wedge, tip up: round tip of `tip_radius`, flanks through the base corners.
+
+    The flanks are tangent to the tip circle and pass through (centre_x ± base/2, y_tip − height).
+    """
+
+    tip_radius: float
+    base: float
+    height: float
+    shape: ClassVar[str] = "wedge"
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.tip_radius > self.base / 2:
+            raise InputError(
+                "wedge.tip_radius", f"{self.tip_radius} mm is larger than half the base "
+                f"({self.base / 2} mm): the round tip would be wider than the wedge.",
+                "use tip_radius <= base/2 (tip_radius = base/2 is a round-tipped bar).",
+            )
+        if self.height <= self.tip_radius:
+            raise InputError(
+                "wedge.height", f"{self.height} mm does not exceed tip_radius "
+                f"{self.tip_radius} mm.", "make the wedge taller than its tip radius.",
+            )
+
+    def _tip(self):
+        # Tangency of the flank {q·(cos α, sin α) = r} (q from the tip centre) through the base
+        # corner (a, −b): a cos α − b sin α = r, i.e. ρ cos(α + β) = r with ρ, β polar of (a, b).
+        r, a, b = self.tip_radius, self.base / 2, self.height - self.tip_radius
+        return r, math.acos(r / math.hypot(a, b)) - math.atan2(b, a)
+
+    @property
+    def half_angle(self) -> float:
+        """Half the opening angle of the flanks (rad)."""
+        return self._tip()[1]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Bar(_RoundCone):
+    """A bar of the given width with vertical flanks and a semicircular tip."""
+
+    width: float
+    shape: ClassVar[str] = "bar"
+
+    def _tip(self):
+        return self.width / 2, 0.0
+
+
+SHAPES: dict[str, type[Indenter]] = {cls.shape: cls for cls in (Wedge, Bar, Plate, Cylinder)}
+
+
+def make_indenter(data: dict[str, Any], where: str = "indenter") -> Indenter:
+    """An indenter from a table {"shape": ..., sizes...} (one TOML file's content)."""
+    data = dict(data)
+    shape = data.pop("shape", None)
+    if shape not in SHAPES:
+        raise InputError(
+            f"{where}: shape", f"got {shape!r}.", f"set shape to one of {', '.join(SHAPES)}."
+        )
+    cls = SHAPES[shape]
+    allowed = [f.name for f in fields(cls)]
+    unknown = sorted(set(data) - set(allowed))
+    if unknown:
+        raise InputError(
+            f"{where}: {', '.join(unknown)}", f"unknown key(s) for a {shape}.",
+            f"the keys of a {shape} are: shape, {', '.join(allowed)}.",
+        )
+    missing = [f.name for f in fields(cls) if f.name not in data and f.name != "centre_x"]
+    if missing:
+        raise InputError(
+            f"{where}: {', '.join(missing)}", f"missing for a {shape}.",
+            f"give every size of a {shape}: {', '.join(allowed)} (centre_x defaults to 0).",
+        )
+    try:
+        return cls(**data)
+    except InputError as error:
+        raise InputError(f"{where}: {error.where}", error.problem, error.fix) from None
+
+
+def load_indenter(source: str | Path) -> Indenter:
+    """A built-in indenter by name ("wedge", "bar", "plate", "cylinder") or a TOML file path."""
+    path = Path(source)
+    if path.suffix != ".toml" and not path.exists():
+        path = BUILTIN_DIR / f"{source}.toml"
+    if not path.is_file():
+        builtins = sorted(p.stem for p in BUILTIN_DIR.glob("*.toml"))
+        raise InputError(
+            f"indenter {str(source)!r}", f"no such file ({path}).",
+            f"give a path to a .toml file, or a built-in name: {', '.join(builtins)} "
+            f"(in {BUILTIN_DIR}).",
+        )
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as error:
+        raise InputError(str(path), f"is not valid TOML: {error}.") from None
+    return make_indenter(data, where=str(path))

@@ -1,0 +1,175 @@
+"""Finite-strain kinematics in UFL: F, C, J, E, spectral functions of C exact at C = I.
+
+Ogden-type energies need principal stretches, whose closed-form expressions contain
+sqrt(Δ) with Δ = 0 at every isotropic state (in particular at u = 0): the value is fine but
+the derivative is 0/0. Energies only ever need *symmetric* sums Σ_a f(c_a), and such a sum is
+a smooth function of C. `eigen_sum` evaluates it with the closed form away from Δ = 0 and with
+its Taylor series in Δ (a polynomial in C, so exact derivatives of every order) near Δ = 0.
+Nothing is regularised: no epsilon is added anywhere (an epsilon inside the sqrt gives a
+finite but wrong tangent at u = 0, by a factor ~2, see tests/test_kinematics.py).
+
+Plane strain throughout the model: 2×2 tensors, the out-of-plane stretch λ3 = 1 is put in by
+the material laws. The 3×3 versions serve 3D checks of the same material laws.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import ufl
+
+#: Switch to the Taylor series when Δ < tol·m² (2D) or tr(D²) < tol·m² (3D). At 1e-4 the
+#: dropped terms (Δ⁴ and beyond) and the cancellation in the closed form's second derivative
+#: (~eps·(m/s)³, weighted by Δ/m²) are both ≈1e-14 relative: the tangent is continuous across
+#: the switch to that level (measured in the tests).
+SWITCH_TOL = 1e-4
+
+ScalarFn = Callable[[ufl.core.expr.Expr], ufl.core.expr.Expr]
+
+
+def deformation_gradient(u) -> ufl.core.expr.Expr:
+    """F = I + Grad u (reference configuration; 2D fields give the in-plane 2×2 part)."""
+    d = len(u.ufl_shape) and u.ufl_shape[0]
+    return ufl.Identity(d) + ufl.grad(u)
+
+
+def right_cauchy_green(F) -> ufl.core.expr.Expr:
+    return F.T * F
+
+
+def left_cauchy_green(F) -> ufl.core.expr.Expr:
+    return F * F.T
+
+
+def jacobian(F) -> ufl.core.expr.Expr:
+    """J = det F (in plane strain λ3 = 1, so the 2×2 determinant is the volume ratio)."""
+    return ufl.det(F)
+
+
+def green_lagrange(F) -> ufl.core.expr.Expr:
+    return 0.5 * (right_cauchy_green(F) - ufl.Identity(F.ufl_shape[0]))
+
+
+def _derivatives(f: ScalarFn, m, order: int) -> list:
+    """[f(m), f'(m), ..., f^(order)(m)] as UFL, by symbolic differentiation of f."""
+    mv = ufl.variable(m)
+    out = [f(mv)]
+    for _ in range(order):
+        out.append(ufl.diff(out[-1], mv))
+    return out
+
+
+def _split_2d(C):
+    """Mean m = tr C/2 and squared half-split Δ = ((C11 − C22)/2)² + C12 C21 of a 2×2 C.
+
+    C12·C21 rather than C12² keeps ∂Δ/∂C symmetric, so stresses from ufl.diff are symmetric.
+    """
+    m = 0.5 * (C[0, 0] + C[1, 1])
+    delta = (0.5 * (C[0, 0] - C[1, 1])) ** 2 + C[0, 1] * C[1, 0]
+    return m, delta
+
+
+def _near_isotropic_2d(C, tol: float):
+    m, delta = _split_2d(C)
+    near = ufl.lt(delta, tol * m**2)
+    # Both branches of a conditional are evaluated: give the closed form a Δ bounded away
+    # from 0 so the branch not taken cannot produce inf/NaN derivatives.
+    s = ufl.sqrt(ufl.conditional(near, tol * m**2, delta))
+    return m, delta, s, near
+
+
+def eigen_sum(C, f: ScalarFn, tol: float = SWITCH_TOL) -> ufl.core.expr.Expr:
+    """Σ_a f(c_a) over the eigenvalues c_a of a symmetric 2×2 (or 3×3) C, smooth at C = I.
+
+    2D: c± = m ± s, s = sqrt(Δ). f(m+s) + f(m−s) is even in s, i.e. a series in Δ = s²:
+    2f(m) + f''(m)Δ + f⁗(m)Δ²/12 + f⁽⁶⁾(m)Δ³/360 + ..., used for Δ < tol·m².
+    f must map a UFL scalar to a UFL scalar and be differentiable six times (c ↦ c^p is).
+    """
+    if C.ufl_shape == (3, 3):
+        return _eigen_sum_3d(C, f, tol)
+    if C.ufl_shape != (2, 2):
+        raise ValueError(f"eigen_sum needs a 2×2 or 3×3 tensor, got shape {C.ufl_shape}")
+    m, delta, s, near = _near_isotropic_2d(C, tol)
+    f0, _, f2, _, f4, _, f6 = _derivatives(f, m, 6)
+    series = 2 * f0 + f2 * delta + f4 * delta**2 / 12 + f6 * delta**3 / 360
+    closed = f(m + s) + f(m - s)
+    return ufl.conditional(near, series, closed)
+
+
+def isotropic_tensor_function(C, f: ScalarFn, tol: float = SWITCH_TOL) -> ufl.core.expr.Expr:
+    """f(C) = Σ_a f(c_a) n_a⊗n_a for a symmetric 2×2 C (e.g. ln C), smooth at C = I.
+
+    Sylvester's formula: f(C) = ½(f(c+) + f(c−)) I + (f(c+) − f(c−))/(2s) (C − m I).
+    Both coefficients are even in s; the second one's series is f' + f'''Δ/6 + f⁽⁵⁾Δ²/120.
+    """
+    if C.ufl_shape != (2, 2):
+        raise ValueError(f"isotropic_tensor_function needs a 2×2 tensor, got {C.ufl_shape}")
+    m, delta, s, near = _near_isotropic_2d(C, tol)
+    f0, f1, f2, f3, f4, f5, f6 = _derivatives(f, m, 6)
+    mean = ufl.conditional(
+        near, f0 + f2 * delta / 2 + f4 * delta**2 / 24 + f6 * delta**3 / 720,
+        0.5 * (f(m + s) + f(m - s)),
+    )
+    slope = ufl.conditional(
+        near, f1 + f3 * delta / 6 + f5 * delta**2 / 120, (f(m + s) - f(m - s)) / (2 * s)
+    )
+    I = ufl.Identity(2)
+    return mean * I + slope * (C - m * I)
+
+
+def principal_values_2d(C) -> tuple:
+    """(c_max, c_min) of a symmetric 2×2 tensor. Values only: not for differentiation."""
+    m, delta = _split_2d(C)
+    s = ufl.sqrt(ufl.max_value(delta, 0.0))
+    return m + s, m - s
+
+
+def hencky_strain(F, spatial: bool = True) -> ufl.core.expr.Expr:
+    """Logarithmic strain: ½ ln b (spatial, global x/y axes, ABAQUS 'LE') or ½ ln C.
+
+    In plane strain the out-of-plane log strain is ln λ3 = 0; this is the in-plane 2×2 part.
+    """
+    B = left_cauchy_green(F) if spatial else right_cauchy_green(F)
+    return 0.5 * isotropic_tensor_function(B, ufl.ln)
+
+
+def principal_log_strains(F) -> tuple:
+    """In-plane (max, min) principal logarithmic strains ½ ln c± (values, for outputs)."""
+    c_max, c_min = principal_values_2d(right_cauchy_green(F))
+    return 0.5 * ufl.ln(c_max), 0.5 * ufl.ln(c_min)
+
+
+def principal_stretches_2d(C) -> tuple:
+    """In-plane principal stretches (λ_max, λ_min). Values only: not for differentiation."""
+    c_max, c_min = principal_values_2d(C)
+    return ufl.sqrt(c_max), ufl.sqrt(c_min)
+
+
+def _eigen_sum_3d(C, f: ScalarFn, tol: float):
+    """3×3 version: series in the power sums of the deviator D = C − mI near C ∝ I.
+
+    Σ_a f(m + d_a) = 3f(m) + Σ_k f⁽ᵏ⁾(m) tr(Dᵏ)/k!, a polynomial in C, used for
+    tr(D²) < tol·m² (this covers C = I exactly). Elsewhere the trigonometric (Cardano)
+    eigenvalues. Limitation: at a *double* eigenvalue away from C ∝ I (e.g. exact uniaxial
+    or equibiaxial states) the acos form has an infinite derivative times zero; the sum is
+    smooth there but this formula is not, so 3D tangents are only reliable off such states.
+    The plane-strain model never takes this path.
+    """
+    I = ufl.Identity(3)
+    m = ufl.tr(C) / 3
+    D = C - m * I
+    q = ufl.inner(D, D)  # tr(D²) for symmetric D
+    near = ufl.lt(q, tol * m**2)
+    fd = _derivatives(f, m, 6)
+    D2 = D * D
+    D3 = D2 * D
+    powers = [None, None, q, ufl.tr(D3), ufl.inner(D2, D2), ufl.inner(D3, D2), ufl.inner(D3, D3)]
+    series = 3 * fd[0] + sum(fd[k] * powers[k] / math.factorial(k) for k in range(2, 7))
+
+    p = ufl.sqrt(ufl.conditional(near, tol * m**2, q) / 6)
+    r = ufl.det(D / p) / 2
+    r = ufl.conditional(ufl.gt(r, 1.0), 1.0, ufl.conditional(ufl.lt(r, -1.0), -1.0, r))
+    phi = ufl.acos(r) / 3
+    closed = sum(f(m + 2 * p * ufl.cos(phi + 2 * math.pi * k / 3)) for k in range(3))
+    return ufl.conditional(near, series, closed)

@@ -1,0 +1,365 @@
+"""Constitutive laws as small frozen dataclasses; energies in UFL, stresses by differentiation.
+
+Each material validates its parameters on construction (an `InputError` names the parameter
+and the fix) and provides `strain_energy(C)` for a 2×2 (plane strain, λ3 = 1) or 3×3 right
+Cauchy–Green tensor. Stresses follow from the energy, never from hand-derived formulas:
+S = 2 ∂W/∂C (`second_piola_kirchhoff`), P = F S, σ = F S Fᵀ / J. The numpy counterparts
+(principal Kirchhoff stresses, permeability) are independent closed forms for checks.
+
+Units: mm, N, s; stresses and moduli in MPa; permeability in mm⁴/(N·s).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import MISSING, dataclass, fields
+
+import numpy as np
+import ufl
+
+from .errors import CompactionError, InputError
+from .kinematics import eigen_sum, right_cauchy_green
+
+
+# --------------------------------------------------------------------------------------------
+# validation helpers
+
+
+def _floats(where: str, name: str, value) -> tuple[float, ...]:
+    if isinstance(value, (str, bytes)) or not isinstance(value, Sequence | np.ndarray):
+        raise InputError(where, f"'{name}' must be a list of numbers, got {value!r}.")
+    try:
+        out = tuple(float(v) for v in value)
+    except (TypeError, ValueError):
+        raise InputError(where, f"'{name}' must be a list of numbers, got {value!r}.") from None
+    if not out:
+        raise InputError(where, f"'{name}' is empty.", "give at least one term.")
+    if not all(math.isfinite(v) for v in out):
+        raise InputError(where, f"'{name}' = {out} contains a non-finite value.")
+    return out
+
+
+def _float(where: str, name: str, value) -> float:
+    if isinstance(value, bool):
+        raise InputError(where, f"'{name}' must be a number, got {value!r}.")
+    try:
+        out = float(value)
+    except (TypeError, ValueError):
+        raise InputError(where, f"'{name}' must be a number, got {value!r}.") from None
+    if not math.isfinite(out):
+        raise InputError(where, f"'{name}' = {value!r} is not finite.")
+    return out
+
+
+def _from_dict(cls, data: Mapping, where: str):
+    """Build `cls` from a TOML table: unknown or missing keys are errors that list the keys."""
+    if not isinstance(data, Mapping):
+        raise InputError(where, f"expected a table of parameters, got {type(data).__name__}.")
+    allowed = [f.name for f in fields(cls) if f.name != "where"]
+    required = [f.name for f in fields(cls) if f.name != "where" and f.default is MISSING]
+    unknown = sorted(set(data) - set(allowed))
+    if unknown:
+        raise InputError(
+            where, f"unknown parameter(s) {unknown} for {cls.__name__}.",
+            f"use only {allowed} (check the spelling).",
+        )
+    missing = [k for k in required if k not in data]
+    if missing:
+        raise InputError(where, f"missing parameter(s) {missing} for {cls.__name__}.")
+    return cls(**dict(data), where=where)
+
+
+# --------------------------------------------------------------------------------------------
+# hyperfoam (compressible Ogden, ABAQUS *HYPERFOAM)
+
+
+@dataclass(frozen=True)
+class Hyperfoam:
+    """W = Σ_i 2μ_i/α_i² [λ1^α_i + λ2^α_i + λ3^α_i − 3 + (J^(−α_i β) − 1)/β], β = ν/(1−2ν).
+
+    A single Poisson ratio ν for all terms (as in the paper). Individual μ_i may be negative
+    (the paper's fits have one); what small-strain stability needs is μ0 = Σμ_i > 0 and
+    K0 = Σ 2μ_i(1/3 + β) > 0, which is what is required here. Large-strain stability is the
+    business of `stability.drucker_check`.
+    """
+
+    mu: tuple[float, ...]  # MPa
+    alpha: tuple[float, ...]
+    nu: float
+    where: str = "hyperfoam"
+
+    def __post_init__(self):
+        w = self.where
+        mu = _floats(w, "mu", self.mu)
+        alpha = _floats(w, "alpha", self.alpha)
+        nu = _float(w, "nu", self.nu)
+        if len(mu) != len(alpha):
+            raise InputError(
+                w, f"'mu' has {len(mu)} terms but 'alpha' has {len(alpha)}.",
+                "give one exponent alpha_i for each modulus mu_i.",
+            )
+        if any(a == 0.0 for a in alpha):
+            raise InputError(w, f"'alpha' = {alpha} contains 0 (W divides by α_i²).",
+                             "use nonzero exponents.")
+        if not -1.0 < nu < 0.5:
+            raise InputError(w, f"'nu' = {nu} is outside (-1, 0.5).",
+                             "use -1 < nu < 0.5 (0.5 would be incompressible).")
+        object.__setattr__(self, "mu", mu)
+        object.__setattr__(self, "alpha", alpha)
+        object.__setattr__(self, "nu", nu)
+        if not self.mu0 > 0.0:
+            raise InputError(
+                w, f"initial shear modulus mu0 = sum(mu) = {self.mu0:.6g} MPa is not positive: "
+                "the material is unstable at small strain.", "check the signs of 'mu'.")
+        if not self.K0 > 0.0:  # = 2μ0(1 + ν)/(3(1 − 2ν)): implied by the two checks above
+            raise InputError(
+                w, f"initial bulk modulus K0 = {self.K0:.6g} MPa is not positive.",
+                "check 'mu' and 'nu'.")
+
+    @classmethod
+    def from_dict(cls, data: Mapping, where: str = "hyperfoam") -> Hyperfoam:
+        return _from_dict(cls, data, where)
+
+    @property
+    def beta(self) -> float:
+        return self.nu / (1.0 - 2.0 * self.nu)
+
+    @property
+    def mu0(self) -> float:
+        """Initial shear modulus Σμ_i (MPa)."""
+        return float(sum(self.mu))
+
+    @property
+    def K0(self) -> float:
+        """Initial bulk modulus Σ 2μ_i (1/3 + β) (MPa)."""
+        return float(sum(2.0 * m * (1.0 / 3.0 + self.beta) for m in self.mu))
+
+    @property
+    def lame_lambda0(self) -> float:
+        """Initial Lamé λ = K0 − 2μ0/3 = 2μ0β (the plane-strain small-strain stiffness)."""
+        return self.K0 - 2.0 * self.mu0 / 3.0
+
+    def strain_energy(self, C) -> ufl.core.expr.Expr:
+        """W(C) for a 2×2 C (plane strain, λ3 = 1 inside) or a 3×3 C."""
+        d = C.ufl_shape[0]
+        b = self.beta
+        terms = [(2.0 * m / a**2, a) for m, a in zip(self.mu, self.alpha)]
+
+        def stretch_part(c):  # Σ_i k_i λ^α_i with λ^α = c^(α/2): one eigen_sum for all terms
+            return sum(k * c ** (a / 2.0) for k, a in terms)
+
+        W = eigen_sum(C, stretch_part)
+        # J^(−αβ) = det(C)^(−αβ/2): J from C keeps W a function of C alone.
+        detC = ufl.det(C)
+        lam3_alpha = 1.0 if d == 2 else 0.0  # plane strain: λ3^α = 1 (3D: inside eigen_sum)
+        W += sum(k * (lam3_alpha - 3.0 + (detC ** (-a * b / 2.0) - 1.0) / b) for k, a in terms)
+        return W
+
+    # ---- numpy closed forms (checks, stability) --------------------------------------------
+    def principal_kirchhoff(self, stretches) -> np.ndarray:
+        """τ_a = Σ_i (2μ_i/α_i)(λ_a^α_i − J^(−α_i β)); stretches (..., 3) -> (..., 3), MPa."""
+        lam = np.asarray(stretches, dtype=float)
+        J = np.prod(lam, axis=-1)[..., None, None]
+        mu, al = np.asarray(self.mu), np.asarray(self.alpha)
+        return np.sum(2 * mu / al * (lam[..., None] ** al - J ** (-al * self.beta)), axis=-1)
+
+    def principal_energy(self, stretches) -> np.ndarray:
+        lam = np.asarray(stretches, dtype=float)
+        J = np.prod(lam, axis=-1)[..., None]
+        mu, al = np.asarray(self.mu), np.asarray(self.alpha)
+        s = np.sum(lam[..., None] ** al, axis=-2)
+        return np.sum(2 * mu / al**2 * (s - 3 + (J ** (-al * self.beta) - 1) / self.beta), -1)
+
+
+# --------------------------------------------------------------------------------------------
+# linear elastic (bone, nail)
+
+
+@dataclass(frozen=True)
+class LinearElastic:
+    """Linear elastic in the St Venant–Kirchhoff form W = λ/2 (tr E)² + μ tr(E²).
+
+    Bone and nail are ~10⁵ times stiffer than the tissue: they strain little but the nail
+    region can rotate. Small-strain Hooke's law is not invariant under rotation (a rigid
+    rotation would produce stress); SVK uses the Green–Lagrange strain, so it is, and it
+    reduces to Hooke's law at small strain — which is all the paper's "linear elastic" asks.
+    Plane strain: the 2×2 E is the in-plane part (E33 = 0).
+    """
+
+    E: float  # MPa
+    nu: float
+    where: str = "linear elastic"
+
+    def __post_init__(self):
+        E, nu = _float(self.where, "E", self.E), _float(self.where, "nu", self.nu)
+        if not E > 0:
+            raise InputError(self.where, f"Young's modulus 'E' = {E} MPa is not positive.")
+        if not -1.0 < nu < 0.5:
+            raise InputError(self.where, f"'nu' = {nu} is outside (-1, 0.5).")
+        object.__setattr__(self, "E", E)
+        object.__setattr__(self, "nu", nu)
+
+    @classmethod
+    def from_dict(cls, data: Mapping, where: str = "linear elastic") -> LinearElastic:
+        return _from_dict(cls, data, where)
+
+    @property
+    def mu(self) -> float:
+        return self.E / (2 * (1 + self.nu))
+
+    @property
+    def lmbda(self) -> float:
+        return self.E * self.nu / ((1 + self.nu) * (1 - 2 * self.nu))
+
+    def strain_energy(self, C) -> ufl.core.expr.Expr:
+        E = 0.5 * (C - ufl.Identity(C.ufl_shape[0]))
+        return 0.5 * self.lmbda * ufl.tr(E) ** 2 + self.mu * ufl.inner(E, E)
+
+
+# --------------------------------------------------------------------------------------------
+# stresses from any material with strain_energy(C)
+
+
+def second_piola_kirchhoff(material, F) -> ufl.core.expr.Expr:
+    """S = 2 ∂W/∂C at C = FᵀF (symmetric: the energies use symmetric functions of C)."""
+    C = ufl.variable(right_cauchy_green(F))
+    return 2.0 * ufl.diff(material.strain_energy(C), C)
+
+
+def first_piola_kirchhoff(material, F) -> ufl.core.expr.Expr:
+    return F * second_piola_kirchhoff(material, F)
+
+
+def cauchy_stress(material, F) -> ufl.core.expr.Expr:
+    """σ = F S Fᵀ / J; for a 2×2 F this is the in-plane part of the plane-strain stress."""
+    return F * second_piola_kirchhoff(material, F) * F.T / ufl.det(F)
+
+
+def strain_energy_density(material, F) -> ufl.core.expr.Expr:
+    return material.strain_energy(right_cauchy_green(F))
+
+
+# --------------------------------------------------------------------------------------------
+# Prony series (quasi-linear viscoelasticity)
+
+
+@dataclass(frozen=True)
+class Prony:
+    """g(t) = 1 − Σ g_i (1 − exp(−t/τ_i)) = g∞ + Σ g_i exp(−t/τ_i), g∞ = 1 − Σ g_i."""
+
+    g: tuple[float, ...]
+    tau: tuple[float, ...]  # s
+    where: str = "prony"
+
+    def __post_init__(self):
+        g = _floats(self.where, "g", self.g)
+        tau = _floats(self.where, "tau", self.tau)
+        if len(g) != len(tau):
+            raise InputError(self.where, f"'g' has {len(g)} terms but 'tau' has {len(tau)}.",
+                             "give one relaxation time per ratio.")
+        if any(gi <= 0 for gi in g):
+            raise InputError(self.where, f"'g' = {g}: every ratio must be > 0.",
+                             "drop terms with g_i = 0.")
+        if not sum(g) < 1:
+            raise InputError(self.where, f"sum(g) = {sum(g):.6g} is not < 1: the long-term "
+                             "modulus would vanish or be negative.", "reduce the ratios g_i.")
+        if any(t <= 0 for t in tau):
+            raise InputError(self.where, f"'tau' = {tau}: relaxation times must be > 0 s.")
+        object.__setattr__(self, "g", g)
+        object.__setattr__(self, "tau", tau)
+
+    @classmethod
+    def from_dict(cls, data: Mapping, where: str = "prony") -> Prony:
+        return _from_dict(cls, data, where)
+
+    @property
+    def g_inf(self) -> float:
+        """Long-term ratio 1 − Σg_i."""
+        return 1.0 - float(sum(self.g))
+
+    def relaxation(self, t) -> np.ndarray:
+        t = np.asarray(t, dtype=float)
+        return self.g_inf + sum(gi * np.exp(-t / ti) for gi, ti in zip(self.g, self.tau))
+
+
+# --------------------------------------------------------------------------------------------
+# Holmes–Mow permeability and the biphasic tissue
+
+
+@dataclass(frozen=True)
+class HolmesMow:
+    """k(J) = k0 ((J − φ0)/(1 − φ0))^κ exp(M (J² − 1)/2); undefined for J ≤ φ0 (compaction)."""
+
+    k0: float  # mm⁴/(N·s)
+    phi0: float  # solid volume fraction in the reference state
+    kappa: float
+    M: float
+    where: str = "Holmes-Mow permeability"
+
+    def __post_init__(self):
+        vals = {k: _float(self.where, k, getattr(self, k)) for k in ("k0", "phi0", "kappa", "M")}
+        if not vals["k0"] > 0:
+            raise InputError(self.where, f"'k0' = {vals['k0']} is not positive (mm^4/(N s)).")
+        if not 0 < vals["phi0"] < 1:
+            raise InputError(self.where, f"'phi0' = {vals['phi0']} is not in (0, 1).",
+                             "phi0 is the solid volume fraction, 1/(1 + e0).")
+        if vals["kappa"] < 0 or vals["M"] < 0:
+            raise InputError(self.where, f"'kappa' = {vals['kappa']}, 'M' = {vals['M']}: "
+                             "both must be >= 0 (permeability must fall under compression).")
+        for k, v in vals.items():
+            object.__setattr__(self, k, v)
+
+    @classmethod
+    def from_dict(cls, data: Mapping, where: str = "Holmes-Mow permeability") -> HolmesMow:
+        return _from_dict(cls, data, where)
+
+    def permeability(self, J) -> ufl.core.expr.Expr:
+        return (self.k0 * ((J - self.phi0) / (1 - self.phi0)) ** self.kappa
+                * ufl.exp(self.M * (J**2 - 1) / 2))
+
+    def permeability_np(self, J) -> np.ndarray:
+        J = np.asarray(J, dtype=float)
+        base = np.clip((J - self.phi0) / (1 - self.phi0), 0.0, None)
+        return self.k0 * base**self.kappa * np.exp(self.M * (J**2 - 1) / 2)
+
+
+@dataclass(frozen=True)
+class Biphasic:
+    """Solid (hyperfoam) + inviscid fluid with Holmes–Mow permeability."""
+
+    solid: Hyperfoam
+    permeability: HolmesMow
+
+    @property
+    def phi0(self) -> float:
+        return self.permeability.phi0
+
+
+def check_compaction(J_min: float, where: str, phi0: float, margin: float = 0.0) -> None:
+    """Raise CompactionError if the smallest volume ratio reached the solid fraction φ0.
+
+    `where` names the location (region, point). At J = φ0 all pores are closed and the
+    permeability (and the mixture) is undefined; the solver calls this after each step.
+    """
+    if not J_min > phi0 + margin:
+        raise CompactionError(
+            f"{where}: the volume ratio J reached {J_min:.4g}, at or below the solid volume "
+            f"fraction phi0 = {phi0:g}{f' (+ margin {margin:g})' if margin else ''}: the porous "
+            "solid cannot be compressed beyond its solid volume. Fix: use smaller time steps "
+            "or less indentation (or check the permeability parameters).")
+
+
+# --------------------------------------------------------------------------------------------
+# the paper's parameter sets (Wu et al. 2004, table of material parameters)
+
+SKIN = Hyperfoam(mu=(-7.594e-2, 1.138e-2, 6.572e-2), alpha=(4.941, 6.425, 4.712), nu=0.40,
+                 where="skin")
+SUBCUTANEOUS = Hyperfoam(mu=(-4.895e-2, 9.889e-3, 3.964e-2), alpha=(5.511, 6.571, 5.262),
+                         nu=0.40, where="subcutaneous")
+SKIN_PRONY = Prony(g=(0.148, 0.252), tau=(2.123, 9.371), where="skin prony")
+HOLMES_MOW_SUBCUTANEOUS = HolmesMow(k0=1e-3, phi0=0.4, kappa=0.0848, M=4.638,
+                                    where="subcutaneous permeability")
+SUBCUTANEOUS_BIPHASIC = Biphasic(SUBCUTANEOUS, HOLMES_MOW_SUBCUTANEOUS)
+BONE = LinearElastic(E=17000.0, nu=0.3, where="bone")
+NAIL = LinearElastic(E=170.0, nu=0.3, where="nail")

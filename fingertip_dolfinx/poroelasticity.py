@@ -1,0 +1,71 @@
+"""Biphasic (solid + fluid) tissue at finite strain: residual terms in pure UFL.
+
+Unknowns u (displacement) and p (pore pressure), reference configuration, backward Euler:
+
+    solid:  ∫ (P_e − p J F⁻ᵀ) : Grad v dX                                       = loads
+    fluid:  ∫ (J − J_n) q + Δt J k(J) C⁻¹ Grad p · Grad q dX                    = −Δt ∫ Q·N q
+
+The fluid flux is the Piola pull-back of Darcy's law w = −k grad p, W = J F⁻¹ w =
+−J k C⁻¹ Grad p, so the mass balance is exact at finite strain (the small-strain balance
+div(u̇) − div(k grad p), often paired with a hyperelastic solid, is not). The pressure is the
+Lagrange multiplier of the constituents' incompressibility: in the undrained limit (k Δt/L² → 0)
+J stays at J_n, which needs an inf-sup stable pair (Taylor–Hood P2/P1).
+
+The functions take the measure `dx` (e.g. `dx(SUBCUTANEOUS_TAG)`) so the solver can assemble
+them on a sub-region; no boundary terms are added (impermeable by default: zero flux is the
+natural condition; a drained boundary is the Dirichlet condition p = 0).
+"""
+
+from __future__ import annotations
+
+import ufl
+
+from .kinematics import deformation_gradient, right_cauchy_green
+from .materials import Biphasic, first_piola_kirchhoff
+
+
+def total_first_piola(u, p, material: Biphasic, P_e=None) -> ufl.core.expr.Expr:
+    """P = P_e − p J F⁻ᵀ (Cauchy: σ = σ_e − p I). P_e defaults to the solid's hyperfoam stress."""
+    F = deformation_gradient(u)
+    if P_e is None:
+        P_e = first_piola_kirchhoff(material.solid, F)
+    return P_e - p * ufl.det(F) * ufl.inv(F).T
+
+
+def solid_residual(u, p, v, material: Biphasic, dx, P_e=None) -> ufl.Form:
+    """Momentum balance of the mixture, ∫ P : Grad v dX."""
+    return ufl.inner(total_first_piola(u, p, material, P_e), ufl.grad(v)) * dx
+
+
+def mass_residual(u, p, u_n, q, dt, material: Biphasic, dx) -> ufl.Form:
+    """Δt × (fluid mass balance): ∫ (J − J_n) q + Δt J k(J) C⁻¹ Grad p · Grad q dX."""
+    F = deformation_gradient(u)
+    J = ufl.det(F)
+    J_n = ufl.det(deformation_gradient(u_n))
+    k = material.permeability.permeability(J)
+    Cinv = ufl.inv(right_cauchy_green(F))
+    return ((J - J_n) * q + dt * J * k * ufl.inner(Cinv * ufl.grad(p), ufl.grad(q))) * dx
+
+
+def biphasic_residuals(u, p, u_n, v, q, dt, material: Biphasic, dx, P_e=None):
+    """(solid, fluid) residual forms of one backward-Euler step on the region `dx`."""
+    return (solid_residual(u, p, v, material, dx, P_e),
+            mass_residual(u, p, u_n, q, dt, material, dx))
+
+
+def drained_first_piola(u, material: Biphasic) -> ufl.core.expr.Expr:
+    """The equilibrium (fully drained, p = 0) stress: the solid's hyperfoam response alone.
+
+    Long after loading stops, p → 0 wherever the pore fluid can escape, and the mixture
+    carries load like the drained solid; compare a biphasic run's end state with this.
+    """
+    return first_piola_kirchhoff(material.solid, deformation_gradient(u))
+
+
+def consolidation_time(material: Biphasic, length: float, J: float = 1.0) -> float:
+    """Drainage time scale L² / (H_A k) with the small-strain aggregate modulus
+    H_A = K0 + 4μ0/3 (plane strain, confined): ~t for p to decay over a distance L (mm)."""
+    solid = material.solid
+    H = solid.K0 + 4.0 * solid.mu0 / 3.0
+    k = float(material.permeability.permeability_np(J))
+    return length**2 / (H * k)

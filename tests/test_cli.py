@@ -1,0 +1,69 @@
+"""The `fingertip` command: `mesh` writes its three outputs; bad input is one line, exit 2."""
+
+import json
+import subprocess
+import sys
+
+from fingertip_dolfinx.cli import main
+
+COARSE = ["--min-size", "0.5", "--max-size", "0.8"]
+
+
+def test_mesh_writes_the_mesh_the_picture_and_the_report(tmp_path):
+    out = tmp_path / "mesh"
+    assert main(["mesh", *COARSE, "--out", str(out)]) == 0
+    for name in ("mesh.xdmf", "mesh.h5", "mesh.png", "mesh_report.json"):
+        assert (out / name).stat().st_size > 0, name
+    report = json.loads((out / "mesh_report.json").read_text())
+    assert report["section"] == "male-index" and report["options"]["min_size"] == 0.5
+    assert report["mesh"]["cell_type"] == "triangle" and report["mesh"]["num_cells"] > 0
+    assert report["tags"]["pulp_surface"] == 11
+    assert all(abs(a["relative_error"]) < 0.02 for a in report["areas_mm2"].values())
+
+
+def test_quad_option_reaches_the_mesh(tmp_path):
+    assert main(["mesh", *COARSE, "--quad", "--out", str(tmp_path)]) == 0
+    report = json.loads((tmp_path / "mesh_report.json").read_text())
+    assert report["mesh"]["cell_type"] == "quadrilateral"
+
+
+def test_bad_option_value_exits_2_with_the_message(tmp_path, capsys):
+    assert main(["mesh", "--min-size", "-0.1", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.strip() == (
+        "fingertip mesh: error: --min-size -0.1 (mesh.min_size): must be positive, got -0.1 mm. "
+        "Fix: use a size > 0."
+    )
+    assert not any(tmp_path.iterdir())
+
+
+def test_option_conflicting_with_the_file_names_both(tmp_path, capsys):
+    assert main(["mesh", "--min-size", "0.9", "--out", str(tmp_path)]) == 2
+    assert "--min-size 0.9 (mesh.max_size): 0.4 mm is smaller than" in capsys.readouterr().err
+
+
+def test_unknown_section_exits_2_naming_the_builtin_ones(tmp_path, capsys):
+    assert main(["mesh", "--section", "thumb", "--out", str(tmp_path)]) == 2
+    assert "thumb: no such section file" in capsys.readouterr().err
+
+
+def test_malformed_number_and_help(capsys):
+    assert main(["mesh", "--min-size", "fine", "--out", "x"]) == 2
+    assert "invalid float value: 'fine'" in capsys.readouterr().err
+    assert main(["mesh", "--help"]) == 0
+    help_text = capsys.readouterr().out
+    for option in ("--section", "--min-size", "--max-size", "--quad", "--out"):
+        assert option in help_text
+
+
+def test_command_line_error_has_no_traceback(tmp_path):
+    bad = tmp_path / "finger.toml"
+    bad.write_text("[nail]\nhalf_angle = 120.0\n")
+    result = subprocess.run(
+        [sys.executable, "-m", "fingertip_dolfinx.cli", "mesh", "--section", str(bad),
+         "--out", str(tmp_path / "out")],
+        capture_output=True, text=True,
+    )
+    assert result.returncode == 2
+    assert "Traceback" not in result.stderr
+    assert result.stderr.count("\n") == 1 and "nail.half_angle: must lie strictly" in result.stderr

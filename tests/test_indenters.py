@@ -1,0 +1,172 @@
+"""Indenter shapes: exact signed distances and normals (numpy and UFL alike), data validation."""
+
+import math
+
+import numpy as np
+import pytest
+import ufl
+from dolfinx import fem
+from dolfinx.mesh import create_rectangle
+from mpi4py import MPI
+from scipy.spatial import cKDTree
+
+from fingertip_dolfinx.errors import InputError
+from fingertip_dolfinx.indenters import (
+    BUILTIN_DIR, Bar, Cylinder, Plate, Wedge, load_indenter, make_indenter, penetration,
+)
+
+WEDGE = Wedge(tip_radius=0.025, base=1.2, height=3.0, centre_x=0.3)
+SHAPES = [WEDGE, Bar(width=1.0, centre_x=-0.2), Cylinder(radius=2.0, centre_x=0.5), Plate()]
+Y_TIP = -0.4
+
+
+def boundary(shape, y_tip: float, n: int = 200_001) -> np.ndarray:
+    """Dense points on the shape's boundary (flanks down to 5 mm), built independently."""
+    if isinstance(shape, Plate):
+        return np.column_stack((np.linspace(-10, 10, n), np.full(n, y_tip)))
+    if isinstance(shape, Cylinder):
+        t = np.linspace(0, 2 * np.pi, n)
+        c = np.array([shape.centre_x, y_tip - shape.radius])
+        return c + shape.radius * np.column_stack((np.cos(t), np.sin(t)))
+    if isinstance(shape, Wedge):
+        r, alpha = shape.tip_radius, shape.half_angle
+    else:
+        r, alpha = shape.width / 2, 0.0
+    c = np.array([shape.centre_x, y_tip - r])
+    t = np.linspace(alpha, np.pi - alpha, n)
+    arc = c + r * np.column_stack((np.cos(t), np.sin(t)))
+    s = np.linspace(0, 5, n)[:, None]
+    tangent_point = c + r * np.array([math.cos(alpha), math.sin(alpha)])
+    right = tangent_point + s * [math.sin(alpha), -math.cos(alpha)]
+    left = right * [-1, 1] + [2 * c[0], 0]
+    return np.vstack((arc, right, left))
+
+
+@pytest.mark.parametrize("shape", SHAPES, ids=lambda s: s.shape)
+def test_distance_magnitude_matches_brute_force_and_normal_is_its_gradient(shape):
+    rng = np.random.default_rng(1)
+    points = np.column_stack((rng.uniform(-1.5, 1.5, 300), rng.uniform(-2.5, 0.6, 300)))
+    phi, n = shape.signed_distance_np(points, Y_TIP)
+    edge = boundary(shape, Y_TIP)
+    nearest, _ = cKDTree(edge).query(points)
+    assert np.allclose(np.abs(phi), nearest, atol=1e-6)
+    # n = ∇φ, of unit length, wherever φ is differentiable (off the medial axis).
+    assert np.allclose(np.linalg.norm(n, axis=1), 1.0)
+    step = 1e-6
+    for k in range(2):
+        shift = np.zeros(2)
+        shift[k] = step
+        fd = (shape.signed_distance_np(points + shift, Y_TIP)[0]
+              - shape.signed_distance_np(points - shift, Y_TIP)[0]) / (2 * step)
+        smooth = np.abs(points[:, 0] - shape.centre_x) > 1e-3  # the axis is a medial line
+        assert np.allclose(fd[smooth], n[smooth, k], atol=1e-5)
+
+
+def test_wedge_values_at_tip_flanks_and_base_corners():
+    w, r, a = WEDGE, WEDGE.tip_radius, WEDGE.half_angle
+    c = np.array([w.centre_x, Y_TIP - r])
+    flank_normal = np.array([math.cos(a), math.sin(a)])
+    tangent_point = c + r * flank_normal
+    down_flank = np.array([math.sin(a), -math.cos(a)])
+    points = np.array([
+        [w.centre_x, Y_TIP],  # the tip itself
+        [w.centre_x, Y_TIP + 0.01],  # just above it, where the sharp wedge's apex would be
+        c + (r + 0.02) * np.array([math.cos(1.2), math.sin(1.2)]),  # off the round tip
+        c + 0.5 * r * np.array([0.0, 1.0]),  # inside the tip, nearer the arc than the flanks
+        tangent_point + 1.0 * down_flank + 0.05 * flank_normal,  # outside the right flank
+        tangent_point + 1.0 * down_flank - 0.05 * flank_normal,  # inside, near the right flank
+        [w.centre_x + w.base / 2, Y_TIP - w.height],  # base corners lie on the flanks
+        [w.centre_x - w.base / 2, Y_TIP - w.height],
+    ])
+    phi, n = w.signed_distance_np(points, Y_TIP)
+    assert phi == pytest.approx([0.0, 0.01, 0.02, -0.5 * r, 0.05, -0.05, 0.0, 0.0], abs=1e-12)
+    assert n[1] == pytest.approx([0.0, 1.0])
+    assert n[4] == pytest.approx(flank_normal)
+    assert n[7] == pytest.approx(flank_normal * [-1, 1])
+    # The paper's wedge: a thin blade, flanks about 10.9° off vertical.
+    assert math.degrees(a) == pytest.approx(10.93, abs=0.01)
+
+
+def test_bar_cylinder_and_plate_values():
+    bar = Bar(width=1.0)  # tip circle: centre (0, -0.5), radius 0.5
+    phi, _ = bar.signed_distance_np([[0, 1], [1, -3], [0.25, -3], [-1, -3], [1, 0.5]], 0.0)
+    assert phi == pytest.approx([1.0, 0.5, -0.25, 0.5, math.sqrt(2) - 0.5])
+    cyl = Cylinder(radius=2.0, centre_x=0.5)  # centre (0.5, -1)
+    phi, n = cyl.signed_distance_np([[0.5, 3.0], [2.5, -1.0], [0.5, 0.0]], 1.0)
+    assert phi == pytest.approx([2.0, 0.0, -1.0])
+    assert n[1] == pytest.approx([1.0, 0.0])
+    phi, n = Plate().signed_distance_np([[5.0, 0.3], [-2.0, -0.1]], 0.1)
+    assert phi == pytest.approx([0.2, -0.2])
+    assert np.allclose(n, [[0, 1], [0, 1]])
+
+
+def test_penetration_is_the_depth_inside_and_zero_outside():
+    depth = penetration(Bar(width=1.0), np.array([[0.0, -0.1], [0.0, 0.2], [0.4, -2.0]]), 0.0)
+    assert depth == pytest.approx([0.1, 0.0, 0.1])
+
+
+@pytest.mark.parametrize("shape", SHAPES, ids=lambda s: s.shape)
+def test_ufl_and_numpy_agree_at_the_deformed_position(shape):
+    domain = create_rectangle(MPI.COMM_WORLD, [[-1.5, -2.0], [1.5, 0.5]], [12, 10])
+    V = fem.functionspace(domain, ("Lagrange", 2, (2,)))
+    u = fem.Function(V)
+    u.interpolate(lambda x: np.vstack((0.05 * np.sin(x[1]), 0.1 * x[0] * x[1])))
+    y_tip = fem.Constant(domain, Y_TIP)
+    x = ufl.SpatialCoordinate(domain) + u
+    phi, n = shape.signed_distance(x, y_tip)
+    reference_points = np.array([[1 / 3, 1 / 3], [0.1, 0.2], [0.7, 0.2]])
+    expr = fem.Expression(ufl.as_vector((x[0], x[1], phi, n[0], n[1])), reference_points)
+    cells = np.arange(domain.topology.index_map(2).size_local, dtype=np.int32)
+    values = expr.eval(domain, cells).reshape(-1, 5)
+    phi_np, n_np = shape.signed_distance_np(values[:, :2], Y_TIP)
+    assert np.allclose(values[:, 2], phi_np, atol=1e-13)
+    assert np.allclose(values[:, 3:], n_np, atol=1e-12)
+
+
+def test_builtins_load_by_name_with_the_papers_sizes():
+    assert load_indenter("wedge") == Wedge(tip_radius=0.025, base=1.2, height=3.0)
+    assert load_indenter("bar") == Bar(width=1.0)
+    assert isinstance(load_indenter("plate"), Plate)
+    assert isinstance(load_indenter(BUILTIN_DIR / "cylinder.toml"), Cylinder)
+
+
+def test_a_user_file_loads(tmp_path):
+    path = tmp_path / "thin_bar.toml"
+    path.write_text('shape = "bar"\nwidth = 0.5\ncentre_x = 1.5\n')
+    assert load_indenter(path) == Bar(width=0.5, centre_x=1.5)
+
+
+@pytest.mark.parametrize(
+    "data, message",
+    [
+        ({"shape": "bar", "width": 0.0}, "bar.width: must be positive"),
+        ({"shape": "cylinder", "radius": -1.0}, "cylinder.radius: must be positive"),
+        ({"shape": "bar", "width": "1"}, "bar.width: must be a number"),
+        ({"shape": "bar", "width": float("inf")}, "bar.width: must be finite"),
+        ({"shape": "wedge", "tip_radius": 0.7, "base": 1.2, "height": 3.0},
+         "larger than half the base"),
+        ({"shape": "wedge", "tip_radius": 0.1, "base": 1.2, "height": 0.1},
+         "does not exceed tip_radius"),
+        ({"shape": "bar", "width": 1.0, "colour": "red"},
+         "colour: unknown key.*keys of a bar are: shape, centre_x, width"),
+        ({"shape": "wedge", "base": 1.2}, "tip_radius, height: missing for a wedge"),
+        ({"shape": "pyramid"}, "shape: got 'pyramid'.*one of wedge, bar, plate, cylinder"),
+        ({"width": 1.0}, "shape: got None"),
+    ],
+)
+def test_each_bad_value_gets_its_own_message(data, message):
+    with pytest.raises(InputError, match=message):
+        make_indenter(data, where="test.toml")
+
+
+def test_a_missing_file_names_the_builtins_and_where_they_are():
+    with pytest.raises(InputError, match=r"no such file.*bar, cylinder, plate, wedge") as info:
+        load_indenter("pyramid")
+    assert str(BUILTIN_DIR) in str(info.value)
+
+
+def test_bad_toml_is_reported_with_its_path(tmp_path):
+    path = tmp_path / "broken.toml"
+    path.write_text("shape = bar\n")
+    with pytest.raises(InputError, match="not valid TOML"):
+        load_indenter(path)

@@ -1,0 +1,105 @@
+"""Biphasic tissue: Holmes–Mow permeability, compaction guard, drained equilibrium."""
+
+import numpy as np
+import pytest
+import ufl
+from basix.ufl import element, mixed_element
+from dolfinx import fem, mesh
+from mpi4py import MPI
+
+import dolfinx.fem.petsc  # noqa: F401
+from fingertip_dolfinx import materials as mat
+from fingertip_dolfinx import poroelasticity as poro
+from fingertip_dolfinx.errors import CompactionError
+
+HM = mat.HOLMES_MOW_SUBCUTANEOUS
+TISSUE = mat.SUBCUTANEOUS_BIPHASIC
+
+
+def test_permeability_formula_ufl_and_numpy():
+    msh = mesh.create_unit_square(MPI.COMM_SELF, 1, 1)
+    Jc = fem.Constant(msh, 1.0)
+    expr = fem.Expression(HM.permeability(Jc), np.array([[1 / 3, 1 / 3]]))
+    for J in (0.45, 0.8, 1.0, 1.3):
+        Jc.value = J
+        exact = 1e-3 * ((J - 0.4) / 0.6) ** 0.0848 * np.exp(4.638 * (J**2 - 1) / 2)
+        assert expr.eval(msh, np.array([0], dtype=np.int32)).item() == pytest.approx(exact, 1e-14)
+        assert HM.permeability_np(J) == pytest.approx(exact, rel=1e-14)
+    assert HM.permeability_np(1.0) == pytest.approx(1e-3)
+
+
+def test_permeability_vanishes_at_compaction():
+    """k → 0 as J → φ0, monotonically but slowly: ((J − φ0)/(1 − φ0))^κ with κ = 0.0848
+    is still 0.056 at J − φ0 = 1e-15, so the solver must guard J itself (check_compaction)."""
+    J = 0.4 + np.logspace(-1, -15, 29)
+    k = HM.permeability_np(J)
+    assert np.all(np.diff(k) < 0)
+    assert k[-1] / HM.k0 < 0.06
+    assert HM.permeability_np(0.4) == 0.0
+
+
+def test_check_compaction_message():
+    mat.check_compaction(0.41, "subcutaneous", HM.phi0)
+    with pytest.raises(CompactionError) as err:
+        mat.check_compaction(0.39, "subcutaneous at (1.0, -5.2) mm", HM.phi0)
+    text = str(err.value)
+    assert "subcutaneous at (1.0, -5.2) mm" in text and "0.39" in text and "phi0 = 0.4" in text
+    assert "smaller time steps" in text and "less indentation" in text
+
+
+def test_consolidation_time_scale_is_long():
+    """MODEL.md: drainage over millimetres takes ~1e6 s with these parameters."""
+    assert 1e5 < poro.consolidation_time(TISSUE, 3.0) < 1e7
+
+
+def test_confined_compression_equilibrium_is_drained_hyperfoam():
+    """Column, sides and bottom on rollers, top compressed by 20 % and drained (p = 0).
+    One backward-Euler step with Δt ≫ drainage time reaches equilibrium: p ≈ 0 and the
+    total stress equals the drained hyperfoam stress of F = diag(1, 0.8) in closed form."""
+    msh = mesh.create_rectangle(MPI.COMM_SELF, [[0, 0], [0.5, 1.0]], [1, 2])
+    cell = msh.basix_cell()
+    W = fem.functionspace(msh, mixed_element([element("Lagrange", cell, 2, shape=(2,)),
+                                              element("Lagrange", cell, 1)]))
+    w, w_n = fem.Function(W), fem.Function(W)
+    u, p = ufl.split(w)
+    v, q = ufl.TestFunctions(W)
+    dt = fem.Constant(msh, 1e16)
+    dx = ufl.dx(metadata={"quadrature_degree": 4})
+    Ru, Rp = poro.biphasic_residuals(u, p, ufl.split(w_n)[0], v, q, dt, TISSUE, dx)
+
+    fdim = 1
+    V0, _ = W.sub(0).sub(0).collapse()
+    bcs = []
+    for comp, marker, value in [(0, lambda x: np.isclose(x[0], 0) | np.isclose(x[0], 0.5), 0.0),
+                                (1, lambda x: np.isclose(x[1], 0), 0.0),
+                                (1, lambda x: np.isclose(x[1], 1), -0.2)]:
+        facets = mesh.locate_entities_boundary(msh, fdim, marker)
+        dofs = fem.locate_dofs_topological(W.sub(0).sub(comp), fdim, facets)
+        bcs.append(fem.dirichletbc(value, dofs, W.sub(0).sub(comp)))
+    top = mesh.locate_entities_boundary(msh, fdim, lambda x: np.isclose(x[1], 1))
+    bcs.append(fem.dirichletbc(0.0, fem.locate_dofs_topological(W.sub(1), fdim, top), W.sub(1)))
+
+    problem = dolfinx.fem.petsc.NonlinearProblem(
+        Ru + Rp, w, bcs=bcs, petsc_options_prefix="test_confined_",
+        petsc_options={"snes_type": "newtonls", "snes_linesearch_type": "basic",
+                       "snes_rtol": 1e-12, "snes_atol": 1e-16, "snes_max_it": 30,
+                       "ksp_type": "preonly", "pc_type": "lu"})
+    problem.solve()
+    assert problem.solver.getConvergedReason() > 0
+
+    lam = np.array([1.0, 0.8, 1.0])
+    tau = TISSUE.solid.principal_kirchhoff(lam)
+    P22 = tau[1] / lam[1]
+    points = np.array([[0.2, 0.3], [0.7, 0.1]])
+    P = poro.total_first_piola(u, p, TISSUE)
+    J = ufl.det(ufl.Identity(2) + ufl.grad(u))
+    vals = fem.Expression(ufl.as_vector([P[0, 0], P[1, 1], P[0, 1], p, J]), points)
+    out = vals.eval(msh, np.arange(msh.topology.index_map(2).size_local, dtype=np.int32))
+    out = out.reshape(-1, 5)
+    print(f"drained P22 = {P22:.6e} MPa; computed {out[:, 1]}; "
+          f"max |p| = {np.abs(out[:, 3]).max():.1e}")
+    assert np.allclose(out[:, 1], P22, rtol=1e-8, atol=0)
+    assert np.allclose(out[:, 0], tau[0] / lam[0], rtol=1e-8, atol=0)
+    assert np.abs(out[:, 3]).max() < 1e-8 * abs(P22)
+    assert np.allclose(out[:, 4], 0.8, rtol=1e-12)
+    mat.check_compaction(out[:, 4].min(), "confined column", TISSUE.phi0)  # 0.8 > φ0: passes
