@@ -260,7 +260,7 @@ class FingertipProblem:
         owner = comm.allreduce(comm.rank if local[0] == J_min else comm.size, op=MPI.MIN)
         where = np.zeros(2)
         if comm.rank == owner:
-            where = self.mesh.geometry.x[self.mesh.geometry.dofmap[local[1]], :2].mean(axis=0)
+            where = self.mesh.geometry.x[self.mesh.geometry.dofmaps[0][local[1]], :2].mean(axis=0)
         return J_min, comm.bcast(where, root=owner)
 
     def inadmissible(self) -> str | None:
@@ -278,9 +278,13 @@ class FingertipProblem:
         return None
 
     def support_reaction(self) -> float:
-        """The y-force (N/mm) the body exerts on the clamped nail patch (> 0 pushes it +y)."""
+        """The y-force (N/mm) the body passes to the clamped nail patch (> 0 pushes it +y).
+
+        The residual at the clamped dofs is the force the clamp exerts on the body; the load
+        on the support is its opposite. At equilibrium it equals the indenters' force.
+        """
         local = fem.assemble_scalar(self._reaction_form)
-        return self.mesh.comm.allreduce(local, op=MPI.SUM)
+        return -self.mesh.comm.allreduce(local, op=MPI.SUM)
 
     def diagnostics(self) -> dict[str, float]:
         forces = self.contact.forces()

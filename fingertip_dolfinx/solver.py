@@ -32,7 +32,7 @@ DEFAULT_PETSC_OPTIONS = {
     "snes_rtol": 1e-9,
     "snes_atol": 1e-10,
     "snes_stol": 0.0,
-    "snes_max_it": 25,
+    "snes_max_it": 15,  # a failing attempt should fail fast: the step is cut and retried
     "ksp_type": "preonly",
     "pc_type": "lu",
     "pc_factor_mat_solver_type": "mumps",
@@ -67,7 +67,7 @@ class Steppable(Protocol):
         """Why the converged state cannot be accepted (inverted elements, ...), or None."""
 
     def diagnostics(self) -> dict[str, float]:
-        """Per-step quantities to report: force, penetration, min J, ..."""
+        """Per-step quantities of the converged state, before `accept`: force, min J, ..."""
 
 
 @dataclass
@@ -189,6 +189,9 @@ class TimeStepper:
                         "saved. Fix: lower the load or its rate, refine the mesh where it fails, "
                         "or allow smaller steps (dt_min, max_cuts)."
                     )
+            # Diagnostics first: accepting advances the history, after which the stress forms
+            # describe the start of the next step, not the state just solved.
+            diagnostics = problem.diagnostics()
             problem.accept()
             states.append((t_new, [f.x.array.copy() for f in problem.unknowns]))
             step += 1
@@ -200,7 +203,7 @@ class TimeStepper:
                 newton_iterations=iterations,
                 cuts=cuts,
                 wall_time_s=wallclock.perf_counter() - started,
-                diagnostics=problem.diagnostics(),
+                diagnostics=diagnostics,
             )
             reports.append(report)
             if on_step is not None:
