@@ -45,7 +45,113 @@ def _add_mesh(subparsers) -> None:
     p.set_defaults(handler=_run_mesh)
 
 
-COMMANDS = [_add_mesh]
+def _add_scene_options(p) -> None:
+    p.add_argument("--config", type=Path, metavar="FILE",
+                   help="TOML file of overrides, with the tables of a scene file, merged over it")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override one scene key, e.g. --set model.subcutaneous=drained "
+                   "--set section.mesh.min_size=0.05 (repeatable; values read as TOML)")
+    p.add_argument("--out", required=True, type=Path, metavar="DIR", help="output directory")
+    p.add_argument("--quiet", action="store_true", help="no progress display")
+
+
+def _add_run(subparsers) -> None:
+    p = subparsers.add_parser(
+        "run",
+        help="run a scene (line-load, 1pt, 2pt or a scene TOML) and write its results",
+        description="Run one experiment and write DIR/summary.json, history.csv, "
+        "surface_profile.csv, depth_profiles.csv, fields for ParaView (*.bp) and PNG figures. "
+        "Results are written step by step; --resume continues an interrupted run.",
+    )
+    p.add_argument("scene", metavar="SCENE",
+                   help="built-in scene (line-load, 1pt, 2pt; in scenes/) or a scene TOML file")
+    p.add_argument("--spacing", type=float, metavar="D",
+                   help="centre spacing (mm) of the two bars of a 2pt scene")
+    p.add_argument("--resume", action="store_true",
+                   help="continue the run in DIR from its last saved step")
+    _add_scene_options(p)
+    p.set_defaults(handler=_run_scene)
+
+
+def _add_sweep(subparsers) -> None:
+    p = subparsers.add_parser(
+        "sweep",
+        help="run a 2pt scene over bar spacings; normalised variations and the threshold",
+        description="Run the two-point scene for each spacing (into DIR/d<spacing>/), then write "
+        "DIR/normalized_variation.csv, DIR/summary.json (with threshold_mm and its criterion) "
+        "and DIR/normalized_variation.png. Under mpiexec the spacings run side by side, one "
+        "group of ranks each.",
+    )
+    p.add_argument("scene", metavar="SCENE", help="a two-point scene (2pt or a TOML file)")
+    p.add_argument("--spacings", type=float, nargs="+", required=True, metavar="D",
+                   help="centre spacings in mm, e.g. 1.5 2 3 4")
+    _add_scene_options(p)
+    p.set_defaults(handler=_run_sweep)
+
+
+COMMANDS = [_add_mesh, _add_run, _add_sweep]
+
+
+def _scene_overrides(args) -> list[str]:
+    """--config FILE's keys as KEY=VALUE overrides, followed by the --set ones."""
+    import tomllib
+
+    overrides = []
+    if args.config is not None:
+        try:
+            data = tomllib.loads(args.config.read_text())
+        except FileNotFoundError:
+            raise InputError(f"--config {args.config}", "no such file.") from None
+        except tomllib.TOMLDecodeError as e:
+            raise InputError(f"--config {args.config}", f"is not valid TOML: {e}.") from None
+
+        def flatten(prefix, node):
+            for key, value in node.items():
+                if isinstance(value, dict):
+                    yield from flatten(f"{prefix}{key}.", value)
+                else:
+                    yield f"{prefix}{key}={_toml_value(value)}"
+
+        overrides += list(flatten("", data))
+    return overrides + list(args.overrides)
+
+
+def _toml_value(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    return repr(value)
+
+
+def _run_scene(args) -> int:
+    from .scene import load_scene, run_scene
+
+    scene = load_scene(args.scene, _scene_overrides(args), spacing=args.spacing)
+    summary = run_scene(scene, args.out, resume=args.resume, progress=not args.quiet)
+    _rank0_print(
+        f"{scene.name}: {summary['time_steps']} steps, {summary['newton_iterations']} Newton "
+        f"iterations, {summary['wall_time_s']:.1f} s; peak force "
+        f"{summary['peak_force_N_per_mm']:.4g} N/mm, max penetration "
+        f"{1e3 * summary['max_penetration_mm']:.3g} µm; results in {args.out}"
+    )
+    return 0
+
+
+def _run_sweep(args) -> int:
+    from .sweep import run_sweep
+
+    result = run_sweep(args.scene, args.spacings, args.out, _scene_overrides(args),
+                       progress=not args.quiet)
+    threshold = result["threshold_mm"]
+    _rank0_print(
+        f"2pt sweep over {len(args.spacings)} spacings: threshold "
+        f"{'not bracketed' if threshold is None else f'{threshold:.2f} mm'} "
+        f"({result['threshold_criterion']}); results in {args.out}"
+    )
+    return 0
 
 
 def _run_mesh(args) -> int:

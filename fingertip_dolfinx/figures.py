@@ -97,3 +97,89 @@ def plot_tagged_mesh(fm: FingertipMesh, path: str | Path, title: str | None = No
     fig.savefig(path, dpi=150)
     plt.close(fig)
     return path
+
+
+# --------------------------------------------------------------------------------------------
+# Result figures, from the result files' columns (numpy arrays) on rank 0.
+
+
+def plot_force_history(history: dict, path: Path, title: str = "") -> None:
+    """Indenter displacement and force per unit length against time (cf. the paper's Fig. 3)."""
+    fig, (ax_d, ax_f) = plt.subplots(2, 1, figsize=(6.4, 6.0), sharex=True)
+    t = np.concatenate([[0.0], history["time_s"]])
+    ax_d.plot(t, np.concatenate([[0.0], history["indenter_displacement_mm"]]), "k-")
+    ax_d.set_ylabel("indentation (mm)")
+    ax_f.plot(t, np.concatenate([[0.0], history["force_N_per_mm"]]), "o-", ms=3)
+    ax_f.set_ylabel("force (N/mm)")
+    ax_f.set_xlabel("time (s)")
+    if t[-1] > 10:
+        for ax in (ax_d, ax_f):
+            ax.set_xscale("symlog", linthresh=1.0)
+    ax_d.set_title(title)
+    for ax in (ax_d, ax_f):
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=150)
+    plt.close(fig)
+
+
+def plot_surface_profiles(profile: dict, path: Path, title: str = "") -> None:
+    """Deflection of the pulp surface along x at each output time (cf. the paper's Fig. 2)."""
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    for t in np.unique(profile["time_s"]):
+        rows = profile["time_s"] == t
+        order = np.argsort(profile["x_mm"][rows])
+        ax.plot(profile["x_mm"][rows][order], profile["deflection_mm"][rows][order],
+                label=f"t = {t:g} s")
+    ax.set_xlabel("x (mm), distance from the load axis")
+    ax.set_ylabel("surface deflection (mm)")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=150)
+    plt.close(fig)
+
+
+DEPTH_QUANTITIES = (("e_max", "max principal log strain"), ("e_min", "min principal log strain"),
+                    ("e12", "shear log strain e12"), ("sed_MPa", "strain energy density (MPa)"))
+
+
+def plot_depth_profiles(depth: dict, path: Path, time_s: float, title: str = "") -> None:
+    """Strains and SED along the curves at fixed depths (cf. the paper's Fig. 5)."""
+    fig, axes = plt.subplots(2, 2, figsize=(9.6, 6.4), sharex=True)
+    at_time = np.isclose(depth["time_s"], time_s)
+    for ax, (key, label) in zip(axes.ravel(), DEPTH_QUANTITIES):
+        for d in np.unique(depth["depth_mm"][at_time]):
+            rows = at_time & (depth["depth_mm"] == d)
+            ax.plot(depth["x_mm"][rows], depth[key][rows], label=f"depth {d:g} mm")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    for ax in axes[1]:
+        ax.set_xlabel("x (mm)")
+    axes[0, 0].legend()
+    fig.suptitle(f"{title} (t = {time_s:g} s)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=150)
+    plt.close(fig)
+
+
+def plot_field(corners: np.ndarray, values: np.ndarray, path: Path, label: str,
+               title: str = "", cmap: str = "viridis", window=None) -> None:
+    """A P1 field on triangles: `corners` (n, 3, 2) deformed positions, `values` (n, 3)."""
+    from matplotlib.tri import Triangulation
+
+    fig, ax = plt.subplots(figsize=(6.4, 5.6))
+    xy = corners.reshape(-1, 2)
+    tri = Triangulation(xy[:, 0], xy[:, 1], np.arange(len(xy)).reshape(-1, 3))
+    image = ax.tripcolor(tri, values.ravel(), shading="gouraud", cmap=cmap)
+    fig.colorbar(image, ax=ax, label=label, shrink=0.8)
+    ax.set_aspect("equal")
+    if window is not None:
+        ax.set_xlim(window[0]), ax.set_ylim(window[1])
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    ax.set_title(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=150)
+    plt.close(fig)

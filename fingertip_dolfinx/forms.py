@@ -170,7 +170,7 @@ class FingertipProblem:
         sub_cells = fmesh.cell_tags.find(tags["subcutaneous"])
         self._sub_cells = sub_cells
         if options.subcutaneous == "biphasic":
-            submesh, entity_map, _, _ = dmesh.create_submesh(msh, tdim, sub_cells)
+            submesh, entity_map, _, self.submesh_nodes = dmesh.create_submesh(msh, tdim, sub_cells)
             self.submesh = submesh
             Q = fem.functionspace(submesh, ("Lagrange", options.displacement_degree - 1))
             self.p = fem.Function(Q, name="pore_pressure")
@@ -239,6 +239,10 @@ class FingertipProblem:
         if self.qlv is not None:
             self.qlv.advance()
         self.u_n.x.array[:] = self.u.x.array
+        self._last = [f.x.array.copy() for f in self.unknowns]
+
+    def mark_accepted(self) -> None:
+        """Take the current unknowns as the last accepted state (after loading a checkpoint)."""
         self._last = [f.x.array.copy() for f in self.unknowns]
 
     def restore(self) -> None:

@@ -358,10 +358,11 @@ def section_path(source: str | Path) -> Path:
     return path
 
 
-def load_section(source: str | Path = "male-index") -> Section:
+def load_section(source: str | Path = "male-index", overrides: dict | None = None) -> Section:
     """Read and validate a section (with its `[mesh]` options) from a built-in name or a path.
 
     Keys left out keep the defaults of `Section` (those of the built-in `male-index`).
+    `overrides` has the tables of a section file ({"mesh": {"min_size": 0.05}}) and wins.
     """
     path = section_path(source)
     try:
@@ -369,6 +370,10 @@ def load_section(source: str | Path = "male-index") -> Section:
             data = tomllib.load(f)
     except tomllib.TOMLDecodeError as e:
         raise InputError(str(path), f"is not valid TOML: {e}.", "fix the syntax.") from None
+    for table, values in (overrides or {}).items():
+        if not isinstance(values, dict):
+            raise InputError(f"section.{table}", "must be a table.", f"write [section.{table}].")
+        data[table] = {**data.get(table, {}), **values}
     try:
         return _section_from_dict(data, name=path.stem)
     except InputError as e:
