@@ -151,7 +151,7 @@ def _fmt(value):
     if value is None or (isinstance(value, float) and math.isnan(value)):
         return ""
     if isinstance(value, float | np.floating):
-        return f"{value:.10g}"
+        return f"{value:.12g}"
     return value
 
 

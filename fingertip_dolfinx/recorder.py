@@ -55,6 +55,8 @@ class Recorder:
         self.problem = FingertipProblem(self.fm, scene.indenters, scene.history, Tissues(),
                                         scene.model)
         self.start_time, self.start_dt, self.steps_before = 0.0, None, 0
+        self.previous = None  # (time, unknowns) one step back: the predictor's second point
+        self._last_state = (0.0, [f.x.array.copy() for f in self.problem.unknowns])
         if resume:
             self._load_checkpoint()
         self.stepper = TimeStepper(self.problem, self._step_options(), scene.petsc_options)
@@ -75,8 +77,8 @@ class Recorder:
 
         if self.start_dt is None:
             return self.scene.steps
-        return dataclasses.replace(self.scene.steps, dt_initial=max(
-            self.start_dt, self.scene.steps.dt_min))
+        steps = self.scene.steps
+        return dataclasses.replace(steps, dt_initial=min(max(self.start_dt, steps.dt_min), steps.dt_max))
 
     def _setup_sampling(self):
         p, scene = self.problem, self.scene
@@ -127,7 +129,8 @@ class Recorder:
             self._bar = (bar, bar.add_task(scene.name, total=end, completed=self.start_time,
                                            status=""))
             self.stepper.run(scene.history, end, start_time=self.start_time,
-                             breakpoints=scene.output_times, on_step=self.on_step)
+                             breakpoints=scene.output_times, on_step=self.on_step,
+                             previous=self.previous)
 
     def on_step(self, report):
         self.step_count += 1
@@ -144,6 +147,7 @@ class Recorder:
         if at_output:
             self._write_profiles(report.time)
         self._save_checkpoint(report)
+        self._last_state = (report.time, [f.x.array.copy() for f in self.problem.unknowns])
         if self._bar is not None:
             bar, task = self._bar
             bar.update(task, completed=report.time, status=(
@@ -222,8 +226,10 @@ class Recorder:
     def _save_checkpoint(self, report):
         path = self.out / "checkpoint" / f"rank{self.comm.rank}.npz"
         tmp = path.with_name(path.stem + ".tmp.npz")
-        np.savez(tmp, time=report.time, dt=report.dt, steps=self.step_count,
-                 ranks=self.comm.size, **self._state_arrays())
+        previous_time, previous = self._last_state
+        np.savez(tmp, time=report.time, dt=report.next_dt, steps=self.step_count,
+                 ranks=self.comm.size, previous_time=previous_time, **self._state_arrays(),
+                 **{f"previous_{i}": a for i, a in enumerate(previous)})
         tmp.replace(path)
 
     def _load_checkpoint(self):
@@ -249,6 +255,9 @@ class Recorder:
         self.start_time = float(data["time"])
         self.start_dt = float(data["dt"])
         self.steps_before = int(data["steps"])
+        self.previous = (float(data["previous_time"]),
+                         [data[f"previous_{i}"] for i in range(len(p.unknowns))])
+        self._last_state = (self.start_time, [f.x.array.copy() for f in p.unknowns])
         p.set_time(self.start_time)
 
     # --- the end -----------------------------------------------------------------------------

@@ -10,6 +10,7 @@ from mpi4py import MPI
 REPO = Path(__file__).resolve().parents[1]
 
 
+@pytest.hookimpl(trylast=True)  # after the terminal reporter has registered itself
 def pytest_configure(config):
     if MPI.COMM_WORLD.size > 1 and MPI.COMM_WORLD.rank != 0:
         # One report is enough: silence the other ranks' terminal output.

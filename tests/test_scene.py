@@ -1,0 +1,126 @@
+"""Scenes end to end on a coarse mesh: outputs, equilibrium, the paper's qualitative results for
+a round-tipped bar, resuming an interrupted run, and the same numbers on 1 and 2 ranks."""
+
+import json
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from fingertip_dolfinx.errors import InputError
+from fingertip_dolfinx.post import DEPTH_COLUMNS, HISTORY_COLUMNS, SURFACE_COLUMNS, read_csv
+from fingertip_dolfinx.recorder import Recorder
+from fingertip_dolfinx.scene import load_scene, run_scene
+from fingertip_dolfinx.solver import DEFAULT_PETSC_OPTIONS
+
+COARSE = ["section.mesh.min_size=0.2", "section.mesh.max_size=1.0", "section.mesh.bone_size=2.0",
+          "output.profile_points=121"]
+
+
+def _one_point(extra=()):
+    return load_scene("1pt", COARSE + list(extra))
+
+
+@pytest.fixture(scope="module")
+def one_point_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("1pt")
+    out = MPI.COMM_WORLD.bcast(out, root=0)
+    summary = run_scene(_one_point(), out, progress=False)
+    return out, summary
+
+
+def test_run_writes_every_documented_output(one_point_run):
+    out, summary = one_point_run
+    for key in ("dofs", "time_steps", "newton_iterations", "wall_time_s", "converged",
+                "peak_force_N_per_mm", "max_penetration_mm", "force_at_output_times_N_per_mm"):
+        assert key in summary
+    assert summary["converged"] and summary["end_time_s"] == pytest.approx(1.0)
+    assert json.loads((out / "summary.json").read_text())["dofs"] == summary["dofs"]
+    assert tuple(read_csv(out / "history.csv")) == HISTORY_COLUMNS
+    assert tuple(read_csv(out / "surface_profile.csv")) == SURFACE_COLUMNS
+    assert tuple(read_csv(out / "depth_profiles.csv")) == DEPTH_COLUMNS
+    for name in ("displacement.bp", "pore_pressure.bp", "log_strain.bp", "force_history.png",
+                 "surface_profile.png", "depth_profiles_t1s.png", "field_u2_t1s.png",
+                 "field_p_t1s.png", "mesh.xdmf"):
+        assert (out / name).exists(), name
+
+
+def test_force_equals_the_support_reaction_at_every_step(one_point_run):
+    """Equilibrium of the discrete problem, to the Newton tolerance: the residual's norm is
+    below max(1e-9 ‖R0‖, 1e-10 N/mm) (DEFAULT_PETSC_OPTIONS), and so is the force mismatch."""
+    h = read_csv(one_point_run[0] / "history.csv")
+    atol = DEFAULT_PETSC_OPTIONS["snes_atol"]
+    np.testing.assert_allclose(h["reaction_N_per_mm"], h["force_N_per_mm"], rtol=1e-8, atol=atol)
+    assert np.all(np.diff(h["force_N_per_mm"]) > 0), "the force must rise over the ramp"
+
+
+def test_strains_next_to_the_contact_match_the_paper(one_point_run):
+    """MODEL.md §4: max strain parallel to the surface, min strain normal to it (under the
+    bar the surface is horizontal: e_max ≈ e11 > 0, e_min ≈ e22 < 0); the shear strain changes
+    sign across the contact point; strains and SED peak next to the contact."""
+    d = read_csv(one_point_run[0] / "depth_profiles.csv")
+    x = d["x_mm"]
+    under = np.abs(x) <= 0.1 + 1e-9  # right under the bar's apex, where the surface is flat
+    # Direction of the max principal strain from the x axis: tan 2θ = 2 e12 / (e11 − e22).
+    theta = 0.5 * np.degrees(np.arctan2(2 * d["e12"][under], d["e11"][under] - d["e22"][under]))
+    assert np.all(np.abs(theta) < 10), theta  # max strain along the surface, min along its normal
+    np.testing.assert_allclose(theta, -theta[::-1], atol=1.0)  # mirror symmetry about x = 0
+    assert np.all(d["e11"][under] > 0) and np.all(d["e22"][under] < 0)
+    left, right = np.interp(-0.5, x, d["e12"]), np.interp(0.5, x, d["e12"])
+    assert left * right < 0 and abs(left + right) < 0.05 * abs(left), (left, right)
+    far = np.abs(x) > 3
+    for key in ("e_max", "sed_MPa"):
+        assert np.max(np.abs(d[key][far])) < 0.2 * np.max(np.abs(d[key][np.abs(x) < 1]))
+
+
+def test_resume_continues_an_interrupted_run(one_point_run, tmp_path_factory):
+    """A run killed after 3 steps and resumed gives the uninterrupted run's results."""
+    comm = MPI.COMM_WORLD
+    out = comm.bcast(tmp_path_factory.mktemp("resume") if comm.rank == 0 else None, root=0)
+    scene = _one_point()
+
+    class Killed(Exception):
+        pass
+
+    first = Recorder(scene, out, comm, resume=False, progress=False)
+    on_step = first.on_step
+
+    def die_after_three(report):
+        on_step(report)
+        if first.step_count == 3:
+            raise Killed
+
+    first.on_step = die_after_three
+    with pytest.raises(Killed):
+        first.run()
+    del first
+    second = Recorder(scene, out, comm, resume=True, progress=False)
+    assert second.start_time > 0
+    second.run()
+    second.finish(True, None, 0.0)
+    resumed, reference = read_csv(out / "history.csv"), read_csv(one_point_run[0] / "history.csv")
+    np.testing.assert_allclose(resumed["time_s"], reference["time_s"], rtol=1e-12)
+    np.testing.assert_allclose(resumed["force_N_per_mm"], reference["force_N_per_mm"], rtol=1e-7)
+
+
+def test_resume_without_a_checkpoint_says_so(tmp_path):
+    with pytest.raises(InputError, match="no checkpoint"):
+        Recorder(_one_point(), tmp_path, MPI.COMM_SELF, resume=True, progress=False)
+
+
+@pytest.mark.mpi
+def test_one_and_two_ranks_give_the_same_numbers(tmp_path_factory):
+    """The same scene on this run's ranks and on each rank alone agrees to 1e-8."""
+    comm = MPI.COMM_WORLD
+    scene = _one_point(["protocol.depth=0.4"])
+    shared = comm.bcast(tmp_path_factory.mktemp("world") if comm.rank == 0 else None, root=0)
+    alone = tmp_path_factory.mktemp(f"self{comm.rank}")
+    parallel = run_scene(scene, shared, progress=False, comm=comm)
+    serial = run_scene(scene, alone, progress=False, comm=MPI.COMM_SELF)
+    assert parallel["dofs"] == serial["dofs"]
+    a, b = read_csv(shared / "history.csv"), read_csv(alone / "history.csv")
+    np.testing.assert_allclose(a["time_s"], b["time_s"], rtol=1e-12)
+    np.testing.assert_allclose(a["force_N_per_mm"], b["force_N_per_mm"], rtol=1e-8)
+    pa, pb = read_csv(shared / "depth_profiles.csv"), read_csv(alone / "depth_profiles.csv")
+    scale = np.nanmax(np.abs(pb["e_min"]))
+    np.testing.assert_allclose(pa["e_min"], pb["e_min"], atol=1e-8 * scale)
