@@ -8,9 +8,11 @@ variation (the paper's Fig. 9)
 
 with the contact point under a bar centre (x = ±d/2, the two sides averaged) and the centre
 x = 0. Two bars read as two when the field dips between them, so V is large; as d shrinks the
-dip fills in. Threshold criterion (documented, reproducible): the mean of V over e11, e22 and
-SED — the quantities the paper names — falls to half its value at the largest spacing; the
-threshold is that spacing, interpolated linearly between the computed ones.
+dip fills in. The paper gives no quantitative criterion; ours, fixed here and reported with the
+result: the threshold is the spacing at which the mean of V over e11, e22 and SED (the
+quantities the paper names) falls `DROP` = 10 % below its value at the largest spacing, i.e. the
+dip between the bars has lost a tenth of what well separated bars produce; linear
+interpolation between the computed spacings.
 """
 
 from __future__ import annotations
@@ -24,8 +26,9 @@ from .post import read_csv, write_json
 
 QUANTITIES = ("e11", "e22", "e12", "u2", "sed")
 _COLUMNS = {"e11": "e11", "e22": "e22", "e12": "e12", "u2": "u2_mm", "sed": "sed_MPa"}
-CRITERION = ("spacing at which the mean normalised variation of e11, e22 and SED falls to half "
-             "its value at the largest spacing (linear interpolation between spacings)")
+DROP = 0.10
+CRITERION = (f"spacing at which the mean normalised variation of e11, e22 and SED falls "
+             f"{DROP:.0%} below its value at the largest spacing (linear interpolation)")
 
 
 def normalized_variation(depth: dict, spacing: float, time_s: float, depth_mm: float) -> dict:
@@ -45,11 +48,11 @@ def normalized_variation(depth: dict, spacing: float, time_s: float, depth_mm: f
 
 
 def threshold(spacings: np.ndarray, variations: dict) -> float | None:
-    """The spacing where mean(V_e11, V_e22, V_sed) falls to half its largest-spacing value."""
+    """The spacing where mean(V_e11, V_e22, V_sed) falls DROP below its largest-spacing value."""
     order = np.argsort(spacings)
     d = np.asarray(spacings)[order]
     v = np.mean([np.asarray(variations[q])[order] for q in ("e11", "e22", "sed")], axis=0)
-    target = 0.5 * v[-1]
+    target = (1 - DROP) * v[-1]
     for i in range(len(d) - 1, 0, -1):
         lo, hi = v[i - 1], v[i]
         if (lo - target) * (hi - target) <= 0 and lo != hi:
