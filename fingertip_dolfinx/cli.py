@@ -69,6 +69,14 @@ def _add_run(subparsers) -> None:
                    help="centre spacing (mm) of the two bars of a 2pt scene")
     p.add_argument("--resume", action="store_true",
                    help="continue the run in DIR from its last saved step")
+    p.add_argument("--fidelity", choices=("scene", "auto"), default="scene",
+                   help="scene: the scene's own model (default); auto: the cheapest model of "
+                   "the fidelity ladder whose key outputs stay within --tol of the full model")
+    p.add_argument("--tol", type=float, default=0.05,
+                   help="relative tolerance for --fidelity auto (default: %(default)s)")
+    p.add_argument("--fidelity-table", type=Path, metavar="CSV",
+                   help="a fidelity.csv from `fingertip study fidelity` for this scene; without "
+                   "it, --fidelity auto first runs the ladder on a coarse mesh in DIR/fidelity/")
     _add_scene_options(p)
     p.set_defaults(handler=_run_scene)
 
@@ -89,7 +97,48 @@ def _add_sweep(subparsers) -> None:
     p.set_defaults(handler=_run_sweep)
 
 
-COMMANDS = [_add_mesh, _add_run, _add_sweep]
+def _add_study(subparsers) -> None:
+    p = subparsers.add_parser(
+        "study",
+        help="studies: model fidelity per scene, numerical stability where methods fail",
+        description="fidelity: the scene with a ladder of models from a linear-elastic "
+        "continuum to the full biphasic model, each scored against the full one "
+        "(DIR/fidelity.csv, .md, .png). stability: known numerical failure modes measured "
+        "beside the methods that work (DIR/stability.csv, .md, figures).",
+    )
+    p.add_argument("kind", choices=("fidelity", "stability"))
+    p.add_argument("--scene", default="line-load", help="scene for the fidelity study")
+    p.add_argument("--full", action="store_true",
+                   help="full resolution (default: the coarse settings CI runs)")
+    _add_scene_options(p)
+    p.set_defaults(handler=_run_study)
+
+
+COMMANDS = [_add_mesh, _add_run, _add_sweep, _add_study]
+
+
+def _run_study(args) -> int:
+    if args.kind == "stability":
+        from .studies.stability import run_stability_study
+
+        run_stability_study(args.out, coarse=not args.full)
+        _rank0_print(f"stability study written to {args.out}/stability.md")
+        return 0
+    from .studies.fidelity import run_fidelity_study
+
+    coarse = [] if args.full else list(FIDELITY_COARSE)
+    rows = run_fidelity_study(args.scene, args.out, coarse + _scene_overrides(args),
+                              progress=not args.quiet)
+    for r in rows:
+        _rank0_print(f"{r['model']:>18}: {r['wall_time_s']:6.1f} s, largest error "
+                     f"{100 * r['max_error']:6.2f} %")
+    _rank0_print(f"fidelity table written to {args.out}/fidelity.md")
+    return 0
+
+
+#: The coarse settings the studies use unless --full: a mesh 2x coarser than the scenes'.
+FIDELITY_COARSE = ("section.mesh.min_size=0.2", "section.mesh.max_size=1.0",
+                   "section.mesh.bone_size=2.0")
 
 
 def _scene_overrides(args) -> list[str]:
@@ -129,7 +178,10 @@ def _toml_value(value) -> str:
 def _run_scene(args) -> int:
     from .scene import load_scene, run_scene
 
-    scene = load_scene(args.scene, _scene_overrides(args), spacing=args.spacing)
+    overrides = _scene_overrides(args)
+    if args.fidelity == "auto":
+        overrides += _auto_fidelity(args, overrides)
+    scene = load_scene(args.scene, overrides, spacing=args.spacing)
     summary = run_scene(scene, args.out, resume=args.resume, progress=not args.quiet)
     _rank0_print(
         f"{scene.name}: {summary['time_steps']} steps, {summary['newton_iterations']} Newton "
@@ -138,6 +190,33 @@ def _run_scene(args) -> int:
         f"{1e3 * summary['max_penetration_mm']:.3g} µm; results in {args.out}"
     )
     return 0
+
+
+def _auto_fidelity(args, overrides: list[str]) -> list[str]:
+    """The settings of the cheapest adequate model; says which it picked and why."""
+    from .studies.fidelity import pick, read_table, run_fidelity_study, settings_of
+
+    if not args.tol > 0:
+        raise InputError("--tol", f"must be positive, got {args.tol}.")
+    if args.fidelity_table is not None:
+        if not args.fidelity_table.is_file():
+            raise InputError(f"--fidelity-table {args.fidelity_table}", "no such file.",
+                             "run `fingertip study fidelity` first, or leave it out.")
+        rows = read_table(args.fidelity_table)
+        source = str(args.fidelity_table)
+    else:
+        _rank0_print("--fidelity auto: running the fidelity ladder on a coarse mesh first")
+        rows = run_fidelity_study(args.scene, args.out / "fidelity",
+                                  list(FIDELITY_COARSE) + overrides, progress=not args.quiet)
+        source = f"{args.out}/fidelity/fidelity.csv"
+    try:
+        model, why = pick(rows, args.tol)
+    except StopIteration:
+        raise InputError("--tol", f"no model of the ladder is within {args.tol:.2%} of the full "
+                         "model (not even the full one with rigid bone).",
+                         "raise --tol or use --fidelity scene.") from None
+    _rank0_print(f"--fidelity auto picked '{model}': {why} (from {source})")
+    return settings_of(model)
 
 
 def _run_sweep(args) -> int:

@@ -53,7 +53,8 @@ from .mesh import FingertipMesh
 from .poroelasticity import mass_residual
 from .viscoelasticity import QuasiLinearViscoelasticity
 
-SUBCUTANEOUS_MODELS = ("biphasic", "drained")
+SUBCUTANEOUS_MODELS = ("biphasic", "undrained", "drained")
+TISSUE_MODELS = ("layered", "continuum")
 
 
 @dataclass(frozen=True)
@@ -76,9 +77,18 @@ class ModelOptions:
     quadrature_degree: int = 4
     #: Skin history (QLV). False: the skin responds with its instantaneous elasticity.
     skin_viscoelastic: bool = True
-    #: "biphasic": pore pressure unknown (Taylor–Hood). "drained": the solid alone (p = 0),
-    #: the long-time limit.
+    #: "layered": the four regions with their own laws. "continuum": one homogeneous
+    #: small-strain linear-elastic section (continuum_E, continuum_nu), the cheapest model.
+    tissue: str = "layered"
+    continuum_E: float = 2 * 0.579e-3 * 1.4  # MPa: the subcutaneous tissue's small-strain E
+    continuum_nu: float = 0.4
+    #: "biphasic": pore pressure unknown (Taylor–Hood). "undrained": no flow at all, the
+    #: tissue is incompressible (J = 1; p its Lagrange multiplier). "drained": the solid alone
+    #: (p = 0), the long-time limit.
     subcutaneous: str = "biphasic"
+    #: Bone and nail rigid and held (their nodes clamped) instead of elastic and held at the
+    #: nail centre.
+    rigid_bone: bool = False
     contact_theta: int = 0
     contact_gamma0: float = 10.0
     #: A converged state whose subcutaneous J falls below φ0 + margin is rejected.
@@ -95,11 +105,20 @@ class ModelOptions:
                 "model.subcutaneous", f"unknown model {self.subcutaneous!r}.",
                 f"use one of {SUBCUTANEOUS_MODELS}.",
             )
-        if self.subcutaneous == "biphasic" and self.displacement_degree < 2:
+        if self.tissue not in TISSUE_MODELS:
+            raise InputError("model.tissue", f"unknown model {self.tissue!r}.",
+                             f"use one of {TISSUE_MODELS}.")
+        if not (self.continuum_E > 0 and -1 < self.continuum_nu < 0.5):
+            raise InputError("model.continuum_E/continuum_nu",
+                             f"E = {self.continuum_E}, nu = {self.continuum_nu} is not a stable "
+                             "elastic material.", "use E > 0 and -1 < nu < 0.5.")
+        if (self.tissue == "layered" and self.subcutaneous != "drained"
+                and self.displacement_degree < 2):
             raise InputError(
                 "model.displacement_degree",
-                "the biphasic tissue needs Taylor–Hood elements (displacement degree >= 2): "
-                "equal-order u/p fails the inf-sup condition in the nearly undrained regime.",
+                f"the {self.subcutaneous} tissue needs Taylor–Hood elements (displacement degree "
+                ">= 2): equal-order u/p fails the inf-sup condition in the (nearly) undrained "
+                "regime.",
                 "use displacement_degree = 2.",
             )
 
@@ -147,20 +166,30 @@ class FingertipProblem:
         self.F = F
 
         # --- constitutive responses per region -------------------------------------------
-        skin_cells = fmesh.cell_tags.find(tags["skin"])
-        S_skin = S_elastic = second_piola_kirchhoff(tissues.skin, F)
         self.qlv = None
-        if options.skin_viscoelastic and tissues.skin_prony is not None:
-            self.qlv = QuasiLinearViscoelasticity(
-                S_skin, tissues.skin_prony, msh, qd, self.dt, cells=skin_cells
-            )
-            S_skin = self.qlv.stress()
-        self.P = {
-            "skin": F * S_skin,
-            "subcutaneous": first_piola_kirchhoff(tissues.subcutaneous.solid, F),
-            "bone": first_piola_kirchhoff(tissues.bone, F),
-            "nail": first_piola_kirchhoff(tissues.nail, F),
-        }
+        if options.tissue == "continuum":
+            sigma = _small_strain_stress(self.u, options.continuum_E, options.continuum_nu)
+            self.P = dict.fromkeys(("skin", "subcutaneous", "bone", "nail"), sigma)
+            P_contact = sigma
+        else:
+            S_skin = second_piola_kirchhoff(tissues.skin, F)
+            # The QLV history lives at cell quadrature points and cannot be evaluated on
+            # facets, so Nitsche's traction estimate uses the skin's instantaneous stress
+            # F S_e. This only shifts the consistency term: at convergence the gap in contact
+            # is (t_n(S_e) − t_n(S))/γ, a fraction (strain/γ0) of h; the penetration is reported.
+            P_contact = F * S_skin
+            if options.skin_viscoelastic and tissues.skin_prony is not None:
+                skin_cells = fmesh.cell_tags.find(tags["skin"])
+                self.qlv = QuasiLinearViscoelasticity(
+                    S_skin, tissues.skin_prony, msh, qd, self.dt, cells=skin_cells
+                )
+                S_skin = self.qlv.stress()
+            self.P = {
+                "skin": F * S_skin,
+                "subcutaneous": first_piola_kirchhoff(tissues.subcutaneous.solid, F),
+                "bone": first_piola_kirchhoff(tissues.bone, F),
+                "nail": first_piola_kirchhoff(tissues.nail, F),
+            }
         R_u = sum(ufl.inner(P, ufl.grad(v)) * dx(tags[name]) for name, P in self.P.items())
 
         # --- pore pressure on the subcutaneous submesh -------------------------------------
@@ -169,7 +198,7 @@ class FingertipProblem:
         residuals_p = []
         sub_cells = fmesh.cell_tags.find(tags["subcutaneous"])
         self._sub_cells = sub_cells
-        if options.subcutaneous == "biphasic":
+        if options.subcutaneous != "drained" and options.tissue == "layered":
             submesh, entity_map, _, self.submesh_nodes = dmesh.create_submesh(msh, tdim, sub_cells)
             self.submesh = submesh
             Q = fem.functionspace(submesh, ("Lagrange", options.displacement_degree - 1))
@@ -177,12 +206,12 @@ class FingertipProblem:
             q = ufl.TestFunction(Q)
             J = ufl.det(F)
             R_u -= ufl.inner(self.p * J * ufl.inv(F).T, ufl.grad(v)) * dx(tags["subcutaneous"])
-            residuals_p.append(
-                mass_residual(
-                    self.u, self.p, self.u_n, q, self.dt, tissues.subcutaneous,
-                    dx(tags["subcutaneous"]),
-                )
-            )
+            if options.subcutaneous == "biphasic":
+                residuals_p.append(mass_residual(self.u, self.p, self.u_n, q, self.dt,
+                                                 tissues.subcutaneous, dx(tags["subcutaneous"])))
+            else:  # undrained: no flow, the volume of every piece of tissue is kept
+                residuals_p.append((J - ufl.det(deformation_gradient(self.u_n))) * q
+                                   * dx(tags["subcutaneous"]))
             self.entity_maps = [entity_map]
 
         # --- contact ------------------------------------------------------------------------
@@ -191,23 +220,25 @@ class FingertipProblem:
         self.obstacles = [Obstacle.at(msh, ind, self.y_touch) for ind in indenters]
         skin = tissues.skin
         modulus = p_wave_modulus(2 * skin.mu0 * (1 + skin.nu), skin.nu)
-        # The QLV history lives at cell quadrature points and cannot be evaluated on facets,
-        # so Nitsche's traction estimate uses the skin's instantaneous stress F S_e. This only
-        # shifts the consistency term: at convergence the gap in contact is
-        # (t_n(S_e) − t_n(S))/γ, a fraction (strain/γ0) of h; the penetration is reported.
+        if options.tissue == "continuum":
+            modulus = p_wave_modulus(options.continuum_E, options.continuum_nu)
         self.contact = NitscheContact(
-            self.u, F * S_elastic, ds(tags["pulp_surface"]), self.obstacles,
+            self.u, P_contact, ds(tags["pulp_surface"]), self.obstacles,
             modulus=modulus, theta=options.contact_theta, gamma0=options.contact_gamma0,
         )
         R_u += self.contact.residual(v)
         self.residuals = [R_u, *residuals_p]
         self.unknowns = [self.u] + ([self.p] if self.p is not None else [])
 
-        # --- support: clamp the nail-centre patch ---------------------------------------------
+        # --- support: clamp the nail-centre patch (or the whole rigid bone and nail) ----------
         fdim = tdim - 1
         msh.topology.create_connectivity(fdim, tdim)
-        clamp_facets = fmesh.facet_tags.find(tags["nail_centre"])
-        clamp_dofs = fem.locate_dofs_topological(V, fdim, clamp_facets)
+        if options.rigid_bone and options.tissue == "layered":
+            rigid = np.concatenate([fmesh.cell_tags.find(tags[n]) for n in ("bone", "nail")])
+            clamp_dofs = fem.locate_dofs_topological(V, tdim, rigid)
+        else:
+            clamp_facets = fmesh.facet_tags.find(tags["nail_centre"])
+            clamp_dofs = fem.locate_dofs_topological(V, fdim, clamp_facets)
         self.bcs = [fem.dirichletbc(np.zeros(2), clamp_dofs, V)]
 
         # The support's y-reaction: the residual tested with e_y on the clamped dofs only.
@@ -342,6 +373,13 @@ class FingertipProblem:
         nodes = nodes[nodes < V.dofmap.index_map.size_local]
         X = V.tabulate_dof_coordinates()[nodes, :2]
         return X, X + self.u.x.array.reshape(-1, 2)[nodes]
+
+
+def _small_strain_stress(u, E: float, nu: float):
+    """σ = λ tr(ε) I + 2μ ε, ε = sym grad u: the linear-elastic continuum model."""
+    mu, lmbda = E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))
+    eps = ufl.sym(ufl.grad(u))
+    return lmbda * ufl.tr(eps) * ufl.Identity(2) + 2 * mu * eps
 
 
 def _quadrature_points(msh: dmesh.Mesh, degree: int) -> np.ndarray:

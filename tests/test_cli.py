@@ -67,3 +67,18 @@ def test_command_line_error_has_no_traceback(tmp_path):
     assert result.returncode == 2
     assert "Traceback" not in result.stderr
     assert result.stderr.count("\n") == 1 and "nail.half_angle: must lie strictly" in result.stderr
+
+
+def test_run_rejects_bad_scene_input_in_one_line(tmp_path, capsys):
+    assert main(["run", "no-such-scene", "--out", str(tmp_path)]) == 2
+    assert "built-in scene" in capsys.readouterr().err
+    assert main(["run", "1pt", "--set", "model.subcutaneous=jelly", "--out", str(tmp_path)]) == 2
+    assert "model.subcutaneous" in capsys.readouterr().err
+    assert main(["run", "1pt", "--set", "nonsense", "--out", str(tmp_path)]) == 2
+    assert "key=value" in capsys.readouterr().err
+    assert main(["run", "2pt", "--spacing", "0.5", "--out", str(tmp_path)]) == 2
+    assert "does not separate" in capsys.readouterr().err
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[model]\ndisplacement_degree = 1\n")
+    assert main(["run", "1pt", "--config", str(bad), "--out", str(tmp_path)]) == 2
+    assert "Taylor" in capsys.readouterr().err

@@ -1,0 +1,125 @@
+"""Which physics does a scene need? The same scene with a ladder of models, cheapest first.
+
+| rung | model |
+| --- | --- |
+| continuum | one homogeneous small-strain linear-elastic section (E, ν of the subcutaneous tissue) |
+| hyperfoam | layered hyperfoam, no time dependence (skin elastic, subcutaneous drained) |
+| + skin QLV | the skin's viscoelasticity added |
+| + undrained | the subcutaneous tissue incompressible (no flow) |
+| full | biphasic subcutaneous tissue (the reference) |
+| full, rigid bone | the full model with bone and nail rigid and held |
+
+Each rung's key outputs (`keys.KEYS`) are compared with the full model's; `pick` names the
+cheapest rung whose largest relative error stays under a tolerance.
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+from mpi4py import MPI
+
+from .keys import KEYS, key_outputs, relative_errors
+
+LADDER = (
+    ("continuum", ["model.tissue=\"continuum\""]),
+    ("hyperfoam", ["model.subcutaneous=\"drained\"", "model.skin_viscoelastic=false"]),
+    ("+ skin QLV", ["model.subcutaneous=\"drained\"", "model.skin_viscoelastic=true"]),
+    ("+ undrained", ["model.subcutaneous=\"undrained\"", "model.skin_viscoelastic=true"]),
+    ("full", ["model.subcutaneous=\"biphasic\"", "model.skin_viscoelastic=true"]),
+    ("full, rigid bone", ["model.subcutaneous=\"biphasic\"", "model.rigid_bone=true"]),
+)
+REFERENCE = "full"
+
+
+def _slug(name: str) -> str:
+    return name.replace("+ ", "plus-").replace(", ", "-").replace(" ", "-")
+
+
+def run_fidelity_study(scene_name: str, out: Path, overrides=(), progress: bool = True) -> list:
+    """Run the ladder for `scene_name` into out/<rung>/; write fidelity.csv, .md and a chart."""
+    from ..scene import load_scene, run_scene
+
+    comm = MPI.COMM_WORLD
+    out = Path(out)
+    results = {}
+    for name, settings in LADDER:
+        scene = load_scene(scene_name, list(overrides) + settings)
+        run_scene(scene, out / _slug(name), progress=progress)
+        results[name] = key_outputs(out / _slug(name))
+    rows = []
+    reference = results[REFERENCE]
+    for name, _ in LADDER:
+        errors = relative_errors(results[name], reference)
+        rows.append({"model": name, "wall_time_s": results[name]["wall_time_s"],
+                     "dofs": results[name]["dofs"], "max_error": max(errors.values()),
+                     **{f"error_{k}": v for k, v in errors.items()},
+                     **{k: results[name][k] for k in KEYS}})
+    if comm.rank == 0:
+        _write(rows, out, scene_name)
+    return rows
+
+
+def pick(rows: list[dict], tol: float) -> tuple[str, str]:
+    """The lowest rung of the ladder whose largest key-output error is below `tol`.
+
+    The ladder is ordered by modelling cost (unknowns, history, nonlinearity); measured wall
+    times of small runs are too noisy to rank models that differ little.
+    """
+    ladder = [r for r in rows if r["model"] != "full, rigid bone"]
+    best = next(r for r in ladder if r["max_error"] <= tol)
+    worst = max(KEYS, key=lambda k: best[f"error_{k}"])
+    cheaper = ladder[:ladder.index(best)]
+    why = (f"'{best['model']}' is the cheapest model whose largest error against the full model "
+           f"is {best['max_error']:.2%} <= {tol:.2%} (worst output: {worst})")
+    if cheaper:
+        why += "; cheaper ones miss: " + ", ".join(
+            f"{r['model']} ({r['max_error']:.1%})" for r in cheaper)
+    return best["model"], why
+
+
+def read_table(path: Path) -> list[dict]:
+    with Path(path).open() as f:
+        rows = list(csv.DictReader(f))
+    return [{k: (v if k == "model" else float(v)) for k, v in r.items()} for r in rows]
+
+
+def settings_of(model: str) -> list[str]:
+    return dict(LADDER)[model]
+
+
+def _write(rows, out: Path, scene_name: str):
+    columns = list(rows[0])
+    with (out / "fidelity.csv").open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=columns)
+        writer.writeheader()
+        writer.writerows(rows)
+    lines = [f"Fidelity ladder for `{scene_name}`: relative error of each key output against "
+             "the full model.", "",
+             "| model | wall time (s) | " + " | ".join(KEYS) + " | max |",
+             "| --- | ---: | " + " | ".join("---:" for _ in KEYS) + " | ---: |"]
+    for r in rows:
+        lines.append(f"| {r['model']} | {r['wall_time_s']:.1f} | "
+                     + " | ".join(f"{100 * r[f'error_{k}']:.1f} %" for k in KEYS)
+                     + f" | {100 * r['max_error']:.1f} % |")
+    (out / "fidelity.md").write_text("\n".join(lines) + "\n")
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    for r in rows:
+        ax.scatter(r["wall_time_s"], max(r["max_error"], 1e-6), s=30)
+        ax.annotate(r["model"], (r["wall_time_s"], max(r["max_error"], 1e-6)), fontsize=8,
+                    xytext=(4, 4), textcoords="offset points")
+    ax.set_yscale("log")
+    ax.set_xlabel("wall time (s)")
+    ax.set_ylabel("largest relative error of the key outputs")
+    ax.set_title(f"{scene_name}: model fidelity against cost")
+    ax.grid(alpha=0.3, which="both")
+    fig.tight_layout()
+    fig.savefig(out / "fidelity.png", dpi=150)
+    plt.close(fig)
