@@ -307,7 +307,7 @@ class FingertipProblem:
             J_sub, where = self.min_jacobian(self._sub_cells)
             if J_sub <= phi0 + self.options.compaction_margin:
                 return (
-                    f"the subcutaneous tissue is compacted to J = {J_sub:.3g} (solid fraction "
+                    f"compaction: the subcutaneous tissue reached J = {J_sub:.3g} (solid fraction "
                     f"phi0 = {phi0:g}) near x = ({where[0]:.3f}, {where[1]:.3f}) mm"
                 )
         return None

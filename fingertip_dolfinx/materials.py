@@ -344,7 +344,7 @@ def check_compaction(J_min: float, where: str, phi0: float, margin: float = 0.0)
     """
     if not J_min > phi0 + margin:
         raise CompactionError(
-            f"{where}: the volume ratio J reached {J_min:.4g}, at or below the solid volume "
+            f"{where}: compaction: the volume ratio J reached {J_min:.4g}, at or below the solid volume "
             f"fraction phi0 = {phi0:g}{f' (+ margin {margin:g})' if margin else ''}: the porous "
             "solid cannot be compressed beyond its solid volume. Fix: use smaller time steps "
             "or less indentation (or check the permeability parameters).")

@@ -177,7 +177,7 @@ class TimeStepper:
                     _extrapolate(problem.unknowns, states, t_new)
                 reason, iterations = self.solve_once()
                 if reason > 0:
-                    why = problem.inadmissible() or ""
+                    why = (problem.inadmissible() or "").rstrip(".")
                     if not why:
                         break
                 else:

@@ -115,8 +115,9 @@ class Column:
         return self._J.eval(self.msh, below).ravel()
 
     def diagnostics(self):
+        local = float(np.max(np.abs(self.jacobian_below(0.5) - 1), initial=0.0))
         return {"settlement": self.settlement(),
-                "max_J_change_lower_half": float(np.max(np.abs(self.jacobian_below(0.5) - 1)))}
+                "max_J_change_lower_half": self.msh.comm.allreduce(local, op=MPI.MAX)}
 
 
 def terzaghi(y, t, H, c, sigma0, M, terms=200):

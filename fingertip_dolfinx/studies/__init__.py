@@ -1,2 +1,2 @@
-"""Numerical studies: each runs a method where it is known to fail beside one that works and
-measures the failure (`stability`: `fingertip study stability --out DIR`)."""
+"""Numerical studies run by `fingertip study KIND --out DIR` (e.g. `stability`: known failure
+modes measured beside the methods that work; `fidelity`: model fidelity per scene)."""
