@@ -101,13 +101,18 @@ def _add_study(subparsers) -> None:
     p = subparsers.add_parser(
         "study",
         help="studies: model fidelity per scene, numerical stability where methods fail",
-        description="fidelity: the scene with a ladder of models from a linear-elastic "
+        description="accuracy: the scene over mesh sizes, element families and time steps, "
+        "errors against a Richardson estimate, the Pareto front of error against wall time "
+        "(DIR/accuracy.csv, .md, .png). "
+        "fidelity: the scene with a ladder of models from a linear-elastic "
         "continuum to the full biphasic model, each scored against the full one "
         "(DIR/fidelity.csv, .md, .png). stability: known numerical failure modes measured "
         "beside the methods that work (DIR/stability.csv, .md, figures).",
     )
-    p.add_argument("kind", choices=("fidelity", "stability"))
-    p.add_argument("--scene", default="line-load", help="scene for the fidelity study")
+    p.add_argument("kind", choices=("accuracy", "fidelity", "stability"))
+    p.add_argument("--scene", default=None,
+                   help="scene of the accuracy and fidelity studies (default: 1pt for accuracy, "
+                   "line-load for fidelity)")
     p.add_argument("--full", action="store_true",
                    help="full resolution (default: the coarse settings CI runs)")
     _add_scene_options(p)
@@ -124,10 +129,19 @@ def _run_study(args) -> int:
         run_stability_study(args.out, coarse=not args.full)
         _rank0_print(f"stability study written to {args.out}/stability.md")
         return 0
+    if args.kind == "accuracy":
+        from .studies.accuracy import run_accuracy_study
+
+        result = run_accuracy_study(args.scene or "1pt", args.out, coarse=not args.full,
+                                    overrides=_scene_overrides(args), progress=not args.quiet)
+        _rank0_print(result["sentence"])
+        _rank0_print(f"accuracy table written to {args.out}/accuracy.md")
+        return 0
     from .studies.fidelity import run_fidelity_study
 
     coarse = [] if args.full else list(FIDELITY_COARSE)
-    rows = run_fidelity_study(args.scene, args.out, coarse + _scene_overrides(args),
+    rows = run_fidelity_study(args.scene or "line-load", args.out,
+                              coarse + _scene_overrides(args),
                               progress=not args.quiet)
     for r in rows:
         _rank0_print(f"{r['model']:>18}: {r['wall_time_s']:6.1f} s, largest error "
