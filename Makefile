@@ -9,7 +9,7 @@ STAMP := $(VENV)/.installed
 
 .PHONY: run install test test-slow clean
 run: $(STAMP)
-	$(VENV)/bin/fingertip mesh --out $(OUT)/mesh
+	$(VENV)/bin/fingertip run line-load --out $(OUT)/line-load
 
 install: $(STAMP)
 

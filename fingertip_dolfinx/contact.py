@@ -26,6 +26,7 @@ of the nearest indenter. Its force counts towards that indenter.
 from __future__ import annotations
 
 from collections.abc import Sequence
+import warnings
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -35,7 +36,27 @@ from dolfinx import fem, mesh as dmesh
 from mpi4py import MPI
 
 from .errors import InputError
-from .indenters import Indenter
+from .indenters import Indenter, tip_radius
+
+#: The surface elements under an indenter's tip must not be longer than this many tip radii:
+#: a tip narrower than the spacing of the surface quadrature points slips between them and
+#: pierces the body (measured on the line-load wedge, r = 25 µm: with surface elements of 0.1 mm
+#: the tip was 14 µm inside at 0.39 mm of indentation and Newton stalled; 0.02 mm elements kept
+#: the tip outside to < 1 µm up to 1 mm).
+TIP_RESOLUTION = 2.0
+#: A tip deeper than this fraction of the indentation (or 1 µm) inside the body is reported.
+TIP_PENETRATION_TOLERANCE = 0.01
+
+
+#: "nitsche": p = [t_n − γ g]_+, consistent, γ only needs to exceed the stress's stiffness.
+#: "penalty": p = [−γ g]_+, always a positive stiffness but a penetration p/γ; the choice for a
+#: sharp tip, where Nitsche's traction estimate t_n is poor and its derivative, a negative
+#: stiffness, made Newton's matrix nearly singular (line load, hold phase).
+CONTACT_METHODS = ("nitsche", "penalty")
+
+
+class TipResolutionWarning(UserWarning):
+    """The mesh is too coarse at an indenter's tip: the tip can pierce the surface."""
 
 
 def p_wave_modulus(E, nu):
@@ -77,7 +98,11 @@ class NitscheContact:
         gamma0: float = 10.0,
         h=None,
         quadrature_degree: int | None = None,
+        method: str = "nitsche",
     ):
+        if method not in CONTACT_METHODS:
+            raise InputError("model.contact", f"unknown contact method {method!r}.",
+                             f"use one of {CONTACT_METHODS}.")
         if theta not in (-1, 0, 1):
             raise InputError(
                 "contact.theta", f"got {theta}.",
@@ -91,7 +116,7 @@ class NitscheContact:
         # A fixed rule: UFL's estimate for these non-polynomial terms is huge and differs
         # between the residual and its derivative, which makes the Jacobian inexact.
         degree = quadrature_degree or 2 * u.function_space.ufl_element().embedded_superdegree + 2
-        self.u, self.ds, self.theta = u, ds(degree=degree), theta
+        self.u, self.ds, self.theta, self.method = u, ds(degree=degree), theta, method
         self.obstacles = tuple(obstacles)
         h = ufl.CellDiameter(domain) if h is None else h
         self.gamma = gamma0 * modulus / h
@@ -102,7 +127,8 @@ class NitscheContact:
             g, n = obstacle.indenter.signed_distance(x, obstacle.y_tip)
             gaps.append(g)
             self._normals.append(n)
-            self._tn.append(ufl.dot(t, n))
+            # The penalty method is Nitsche's without the traction estimate (t_n = 0, θ = 0).
+            self._tn.append(ufl.dot(t, n) if method == "nitsche" else 0.0)
         self._pressures = [
             ufl.max_value(tn - self.gamma * g, 0.0) for tn, g in zip(self._tn, gaps)
         ]
@@ -119,7 +145,7 @@ class NitscheContact:
         """Indenter i's share of the residual, tested with v (an Argument or a Function)."""
         p, n, tn = self._pressures[i], self._normals[i], self._tn[i]
         integrand = -p * ufl.dot(n, v)
-        if self.theta:
+        if self.theta and self.method == "nitsche":
             integrand += self.theta / self.gamma * (p - tn) * ufl.derivative(tn, self.u, v)
         return self._nearest[i] * integrand * self.ds
 
@@ -169,13 +195,10 @@ class NitscheContact:
         )
         return V.mesh.comm.allreduce(depth, op=MPI.MAX)
 
-    def sample(self, expr, points_per_facet: int = 5) -> tuple[np.ndarray, np.ndarray]:
-        """`expr` (e.g. `self.pressure`) at points on this rank's owned surface facets.
-
-        Returns the reference coordinates X (m, 2) of the points and the values (m,); the
-        points of different ranks do not overlap. Facet ends are included (shared points appear
-        once per facet, each with its own cell's value: the field may jump there).
-        """
+    def surface_sampler(self, expr, points_per_facet: int = 5):
+        """A function returning (X, values) of the vector or scalar UFL `expr` at points on
+        this rank's owned surface facets: X (m, 2) reference coordinates, values (m, ...).
+        The expression is compiled once, here; each call evaluates it."""
         domain = self.u.function_space.mesh
         tdim = domain.topology.dim
         domain.topology.create_connectivity(tdim, tdim - 1)
@@ -183,10 +206,65 @@ class NitscheContact:
             fem.IntegralType.exterior_facet, domain.topology, self.facets
         ).reshape(-1, 2)
         X = ufl.SpatialCoordinate(domain)
+        shape = expr.ufl_shape
+        parts = [X[0], X[1], *([expr[i] for i in range(shape[0])] if shape else [expr])]
         points = np.linspace(0.0, 1.0, points_per_facet)[:, None]
-        values = fem.Expression(ufl.as_vector((X[0], X[1], expr)), points).eval(domain, entities)
-        values = values.reshape(-1, 3)
-        return values[:, :2], values[:, 2]
+        compiled = fem.Expression(ufl.as_vector(parts), points)
+
+        def evaluate() -> tuple[np.ndarray, np.ndarray]:
+            values = compiled.eval(domain, entities).reshape(-1, len(parts))
+            return values[:, :2], values[:, 2:] if shape else values[:, 2]
+
+        return evaluate
+
+    def sample(self, expr, points_per_facet: int = 5) -> tuple[np.ndarray, np.ndarray]:
+        """`expr` (e.g. `self.pressure`) at points on this rank's owned surface facets.
+
+        Returns the reference coordinates X (m, 2) of the points and the values (m,); the
+        points of different ranks do not overlap. Facet ends are included (shared points appear
+        once per facet, each with its own cell's value: the field may jump there).
+        """
+        return self.surface_sampler(expr, points_per_facet)()
+
+
+def surface_mesh_size_at(ds_facets: np.ndarray, domain: dmesh.Mesh, x0: float) -> float:
+    """Length of the palmar surface facet (of `ds_facets`, local) nearest to x = x0 (mm)."""
+    fdim = domain.topology.dim - 1
+    best = (np.inf, np.nan)
+    if len(ds_facets):
+        nodes = dmesh.entities_to_geometry(domain, fdim, ds_facets)
+        pts = domain.geometry.x[nodes][:, :, :2]  # (facets, nodes, 2)
+        ends = pts[:, :2]  # the two vertices come first
+        mid = ends.mean(axis=1)
+        palmar = mid[:, 1] < 0
+        if palmar.any():
+            dist = np.where(palmar, np.abs(mid[:, 0] - x0), np.inf)
+            i = int(np.argmin(dist))
+            best = (float(dist[i]), float(np.linalg.norm(ends[i, 1] - ends[i, 0])))
+    everyone = domain.comm.allgather(best)
+    return min(everyone)[1]
+
+
+def check_tip_resolution(contact: NitscheContact) -> list[float]:
+    """Surface element size under each indenter's tip; warns if it exceeds TIP_RESOLUTION
+    tip radii (the tip could slip between quadrature points). Returns the sizes (mm)."""
+    domain = contact.u.function_space.mesh
+    sizes = []
+    for o in contact.obstacles:
+        h = surface_mesh_size_at(contact.facets, domain, o.indenter.centre_x)
+        r = tip_radius(o.indenter)
+        sizes.append(h)
+        if h > TIP_RESOLUTION * r:
+            warnings.warn(
+                f"the {o.indenter.shape} tip (radius {r:g} mm at x = {o.indenter.centre_x:g} mm) "
+                f"meets surface elements of {h:.3g} mm, more than {TIP_RESOLUTION:g} tip radii: "
+                "the tip can slip between the contact quadrature points and pierce the body "
+                f"(the reported max_penetration will show it). Fix: refine around the tip: "
+                f"section.mesh.tips = [{o.indenter.centre_x:g}] with tip_size <= "
+                f"{TIP_RESOLUTION * r:.3g} mm.",
+                TipResolutionWarning, stacklevel=3,
+            )
+    return sizes
 
 
 def _nearest_indicators(gaps: list) -> list:

@@ -22,8 +22,10 @@ line its moment is zero.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import ufl
@@ -31,7 +33,14 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from .contact import NitscheContact, Obstacle, p_wave_modulus
+from .contact import (
+    TIP_PENETRATION_TOLERANCE,
+    NitscheContact,
+    Obstacle,
+    TipResolutionWarning,
+    check_tip_resolution,
+    p_wave_modulus,
+)
 from .errors import InputError
 from .indenters import Indenter
 from .kinematics import deformation_gradient
@@ -54,6 +63,8 @@ from .poroelasticity import mass_residual
 from .viscoelasticity import QuasiLinearViscoelasticity
 
 SUBCUTANEOUS_MODELS = ("biphasic", "undrained", "drained")
+#: Points per surface facet at which the deformed pulp is sampled to find a tip's depth.
+TIP_SAMPLES = 9
 TISSUE_MODELS = ("layered", "continuum")
 
 
@@ -89,6 +100,8 @@ class ModelOptions:
     #: Bone and nail rigid and held (their nodes clamped) instead of elastic and held at the
     #: nail centre.
     rigid_bone: bool = False
+    #: "nitsche" (consistent) or "penalty" (robust at sharp tips): see contact.CONTACT_METHODS.
+    contact: str = "nitsche"
     contact_theta: int = 0
     contact_gamma0: float = 10.0
     #: A converged state whose subcutaneous J falls below φ0 + margin is rejected.
@@ -225,7 +238,11 @@ class FingertipProblem:
         self.contact = NitscheContact(
             self.u, P_contact, ds(tags["pulp_surface"]), self.obstacles,
             modulus=modulus, theta=options.contact_theta, gamma0=options.contact_gamma0,
+            method=options.contact,
         )
+        #: Surface element size (mm) under each indenter's tip; warns if it cannot hold it.
+        self.tip_mesh_sizes = check_tip_resolution(self.contact)
+        self._tip_warned = False
         R_u += self.contact.residual(v)
         self.residuals = [R_u, *residuals_p]
         self.unknowns = [self.u] + ([self.p] if self.p is not None else [])
@@ -341,9 +358,11 @@ class FingertipProblem:
         """How far each indenter's tip lies above the deformed pulp surface (0 if below).
 
         Near the tip the deformed pulp is a graph y = s(x); the tip pierces the body when its
-        height exceeds s at its x. s is interpolated from the deformed surface nodes.
+        height exceeds s at its x. s is sampled from the displacement field itself at
+        `TIP_SAMPLES` points per surface facet (not interpolated between nodes, whose chords
+        cut into a round indenter by h²/8r and would be mistaken for penetration).
         """
-        X, x = self._deformed_pulp()
+        x = self._deformed_pulp()
         depth = 0.0
         if self.mesh.comm.rank == 0 and len(x):
             order = np.argsort(x[:, 0])
@@ -352,17 +371,33 @@ class FingertipProblem:
                 cx = o.indenter.centre_x
                 if xs[0] <= cx <= xs[-1]:
                     depth = max(depth, float(o.y_tip.value - np.interp(cx, xs, ys)))
-        return max(self.mesh.comm.bcast(depth, root=0), 0.0)
+        depth = max(self.mesh.comm.bcast(depth, root=0), 0.0)
+        tolerance = max(TIP_PENETRATION_TOLERANCE * abs(self.indentation(self.time)), 1e-3)
+        if depth > tolerance and not self._tip_warned:
+            self._tip_warned = True  # once per run
+            warnings.warn(
+                f"at t = {self.time:.4g} s the indenter tip is {depth * 1e3:.3g} µm inside the "
+                f"body (tolerance {tolerance * 1e3:.3g} µm): the surface elements under the tip "
+                f"are {max(self.tip_mesh_sizes):.3g} mm long. Fix: refine the mesh under the tip "
+                "(section.mesh.tips = [x of the tip], tip_size below the tip radius).",
+                TipResolutionWarning, stacklevel=2,
+            )
+        return depth
 
-    def _deformed_pulp(self) -> tuple[np.ndarray, np.ndarray]:
-        """Reference and current positions of the pulp-surface nodes of the palmar half,
+    @cached_property
+    def _surface_position(self):
+        return self.contact.surface_sampler(ufl.SpatialCoordinate(self.mesh) + self.u,
+                                            TIP_SAMPLES)
+
+    def _deformed_pulp(self) -> np.ndarray:
+        """Current positions of points of the palmar pulp surface (TIP_SAMPLES per facet),
         gathered on rank 0 (empty elsewhere)."""
-        X, x = self._pulp_nodes()
-        palmar = X[:, 1] < 0
-        gathered = self.mesh.comm.gather((X[palmar], x[palmar]), root=0)
+        X, x = self._surface_position()
+        x = x[X[:, 1] < 0]
+        gathered = self.mesh.comm.gather(x, root=0)
         if self.mesh.comm.rank != 0:
-            return np.zeros((0, 2)), np.zeros((0, 2))
-        return (np.concatenate([g[0] for g in gathered]), np.concatenate([g[1] for g in gathered]))
+            return np.zeros((0, 2))
+        return np.concatenate(gathered)
 
     def _pulp_nodes(self) -> tuple[np.ndarray, np.ndarray]:
         """Reference and current positions of this rank's owned displacement nodes on the pulp."""

@@ -134,10 +134,28 @@ class MeshOptions:
     refine_half_width: float = 4.0  # zone: |x| < this on the pulp surface ...
     refine_depth: float = 2.0  # ... and down to this depth under it
     quadrilateral: bool = False  # recombine into quadrilaterals (Q2/Q1) instead of triangles
+    #: x (mm) of the pulp points where a sharp indenter tip acts: each gets a disc of radius
+    #: tip_zone meshed at tip_size (a tip narrower than the surface elements slips between
+    #: the contact quadrature points). A mesh vertex sits exactly at each such point.
+    tips: tuple[float, ...] = ()
+    tip_size: float = 0.02  # mm, below the tip radius (the paper's wedge: 25 µm)
+    tip_zone: float = 0.25  # mm, radius of the disc meshed at tip_size around each tip point
 
     def __post_init__(self):
-        for key in ("min_size", "max_size", "bone_size", "refine_half_width", "refine_depth"):
+        for key in ("min_size", "max_size", "bone_size", "refine_half_width", "refine_depth",
+                    "tip_size", "tip_zone"):
             _positive(f"mesh.{key}", _number(f"mesh.{key}", getattr(self, key)))
+        if isinstance(self.tips, int | float) or not all(
+            isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
+            for x in self.tips
+        ):
+            raise InputError("mesh.tips", f"must be a list of x positions (mm), got {self.tips!r}.",
+                             "write e.g. tips = [0.0].")
+        object.__setattr__(self, "tips", tuple(float(x) for x in self.tips))
+        if self.tips and self.tip_size > self.min_size:
+            raise InputError("mesh.tip_size", f"{self.tip_size} mm is coarser than mesh.min_size "
+                             f"= {self.min_size} mm: tip refinement must be finer.",
+                             "make tip_size <= min_size (or leave tips empty).")
         if self.max_size < self.min_size:
             raise InputError(
                 "mesh.max_size",
@@ -254,7 +272,15 @@ class Section:
             )
 
     def _check_refinement_zone(self):
-        # The zone's ends (|x| = refine_half_width on the palmar surface) must lie on the pulp.
+        # The zone's ends (|x| = refine_half_width on the palmar surface) must lie on the pulp,
+        # and so must the tip points.
+        for x in self.mesh.tips:
+            if not abs(x) < self.mesh.refine_half_width:
+                raise InputError(
+                    "mesh.tips", f"the tip point x = {x} mm lies outside the refinement zone "
+                    f"|x| < refine_half_width = {self.mesh.refine_half_width} mm.",
+                    "put indenters inside the refinement zone or widen it.",
+                )
         w = self.mesh.refine_half_width
         theta_end = math.radians(270.0 - self.pulp_half_angle)  # left end of the pulp arc
         x_pulp = abs(self.outer.point(self.outer.param_at_polar(theta_end))[0])
@@ -282,6 +308,11 @@ class Section:
         h = math.radians(self.pulp_half_angle)
         left = self.outer.param_at_polar(1.5 * math.pi - h) % (2 * math.pi)
         return left, 3 * math.pi - left  # mirror image about x = 0: u -> pi - u
+
+    @property
+    def tip_params(self) -> tuple[float, ...]:
+        """Parameters of the palmar points at the tip positions x = mesh.tips."""
+        return tuple(2 * math.pi - math.acos(x / self.outer.a) for x in self.mesh.tips)
 
     @property
     def refine_params(self) -> tuple[float, float]:

@@ -183,6 +183,15 @@ class Bar(_RoundCone):
         return self.width / 2, 0.0
 
 
+def tip_radius(indenter: Indenter) -> float:
+    """Radius of curvature of the indenter at its tip (mm; inf for the flat plate)."""
+    if isinstance(indenter, _RoundCone):
+        return indenter._tip()[0]
+    if isinstance(indenter, Cylinder):
+        return indenter.radius
+    return math.inf
+
+
 SHAPES: dict[str, type[Indenter]] = {cls.shape: cls for cls in (Wedge, Bar, Plate, Cylinder)}
 
 

@@ -156,7 +156,7 @@ def _add_geometry(section: Section) -> tuple[dict[str, list[int]], dict[str, lis
 
     # Vertices where the boundary tags change: the ends of the pulp and of the refinement zone
     # on the outer ellipse, and the nail-centre patch (its middle point included).
-    params = [*section.pulp_params, *section.refine_params]
+    params = [*section.pulp_params, *section.refine_params, *section.tip_params]
     split = [section.outer.point(u) for u in params]
     u_right, u_left = section.nail_patch_params
     split += [section.nail_surface_point(u) for u in (u_right, math.pi / 2, u_left)]
@@ -234,7 +234,8 @@ def _add_physical_groups(regions: dict[str, list[int]], curves: dict[str, list[i
 
 def _set_sizes(section: Section, regions: dict[str, list[int]], curves: dict[str, list[int]]):
     """min_size within refine_depth of the pulp's refinement zone, growing away from it to
-    max_size in the soft tissue and nail and to bone_size deep inside the bone."""
+    max_size in the soft tissue and nail and to bone_size deep inside the bone; tip_size within
+    tip_zone of each tip point."""
     opts, field = section.mesh, gmsh.model.mesh.field
     zone_length = section.outer.arc_length(*section.refine_params)
     distance = field.add("Distance")
@@ -253,8 +254,26 @@ def _set_sizes(section: Section, regions: dict[str, list[int]], curves: dict[str
     field.setNumber(cap, "VOut", opts.max_size)
     field.setNumber(cap, "IncludeBoundary", 0)
     field.setNumbers(cap, "SurfacesList", regions["bone"])
+    fields = [graded, cap]
+    if opts.tips:  # a disc of tip_size around each point where a sharp tip acts
+        targets = section.outer.point(np.array(section.tip_params))
+        vertices = [
+            tag for _, tag in gmsh.model.getEntities(0)
+            if np.min(np.linalg.norm(targets - gmsh.model.getValue(0, tag, [])[:2], axis=1)) < 1e-9
+        ]
+        if len(vertices) != len(targets):
+            raise RuntimeError(f"tip points {opts.tips} did not all become mesh vertices")
+        near_tip = field.add("Distance")
+        field.setNumbers(near_tip, "PointsList", vertices)
+        tip = field.add("Threshold")
+        field.setNumber(tip, "InField", near_tip)
+        field.setNumber(tip, "SizeMin", opts.tip_size)
+        field.setNumber(tip, "SizeMax", opts.bone_size)
+        field.setNumber(tip, "DistMin", opts.tip_zone)
+        field.setNumber(tip, "DistMax", opts.tip_zone + (opts.bone_size - opts.tip_size) / SIZE_GROWTH)
+        fields.append(tip)
     size = field.add("Min")
-    field.setNumbers(size, "FieldsList", [graded, cap])
+    field.setNumbers(size, "FieldsList", fields)
     field.setAsBackgroundMesh(size)
     # The field alone sets the sizes (not the CAD points, curvature or boundary).
     for option in ("MeshSizeFromPoints", "MeshSizeFromCurvature", "MeshSizeExtendFromBoundary"):

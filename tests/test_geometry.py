@@ -84,7 +84,15 @@ BAD = {
         "mesh", "refine_half_width", "9.0", r"mesh\.refine_half_width: .* beyond the pulp"
     ),
     "quadrilateral not a boolean": ("mesh", "quadrilateral", "1", r"mesh\.quadrilateral: must be"),
+    "tips not a list": ("mesh", "tips", "0.0", r"mesh\.tips: must be a list"),
+    "tip outside the refinement zone": ("mesh", "tips", "[5.0]", r"mesh\.tips: .* outside the"),
 }
+
+
+def test_tip_refinement_must_be_finer_than_the_zone():
+    with pytest.raises(InputError, match=r"mesh\.tip_size: 0\.5 mm is coarser than mesh\.min"):
+        MeshOptions(tips=(0.0,), tip_size=0.5)
+    assert MeshOptions(tips=[0.0, 1.0]).tips == (0.0, 1.0)
 
 
 @pytest.mark.parametrize("table, key, value, message", BAD.values(), ids=BAD.keys())
