@@ -16,10 +16,13 @@ cheapest rung whose largest relative error stays under a tolerance.
 from __future__ import annotations
 
 import csv
+import json
+import math
 from pathlib import Path
 
 from mpi4py import MPI
 
+from ..errors import ConvergenceError
 from .keys import KEYS, key_outputs, relative_errors
 
 LADDER = (
@@ -43,19 +46,32 @@ def run_fidelity_study(scene_name: str, out: Path, overrides=(), progress: bool 
 
     comm = MPI.COMM_WORLD
     out = Path(out)
-    results = {}
+    results, failures = {}, {}
     for name, settings in LADDER:
         scene = load_scene(scene_name, list(overrides) + settings)
-        run_scene(scene, out / _slug(name), progress=progress)
+        try:
+            run_scene(scene, out / _slug(name), progress=progress)
+        except ConvergenceError as error:
+            # A model that cannot carry the scene is a finding (e.g. the small-strain continuum
+            # under a sharp tip inverts elements): record it, go on with the ladder.
+            if name == REFERENCE:
+                raise
+            failures[name] = str(error).split(". Results")[0]
+            summary = json.loads((out / _slug(name) / "summary.json").read_text())
+            results[name] = {"wall_time_s": summary["wall_time_s"], "dofs": summary["dofs"],
+                             **dict.fromkeys(KEYS, math.nan)}
+            continue
         results[name] = key_outputs(out / _slug(name))
     rows = []
     reference = results[REFERENCE]
     for name, _ in LADDER:
         errors = relative_errors(results[name], reference)
         rows.append({"model": name, "wall_time_s": results[name]["wall_time_s"],
-                     "dofs": results[name]["dofs"], "max_error": max(errors.values()),
+                     "dofs": results[name]["dofs"],
+                     "max_error": math.inf if name in failures else max(errors.values()),
                      **{f"error_{k}": v for k, v in errors.items()},
-                     **{k: results[name][k] for k in KEYS}})
+                     **{k: results[name][k] for k in KEYS},
+                     "failure": failures.get(name, "")})
     if comm.rank == 0:
         _write(rows, out, scene_name)
     return rows
@@ -82,7 +98,8 @@ def pick(rows: list[dict], tol: float) -> tuple[str, str]:
 def read_table(path: Path) -> list[dict]:
     with Path(path).open() as f:
         rows = list(csv.DictReader(f))
-    return [{k: (v if k == "model" else float(v)) for k, v in r.items()} for r in rows]
+    return [{k: (v if k in ("model", "failure") else float(v)) for k, v in r.items()}
+            for r in rows]
 
 
 def settings_of(model: str) -> list[str]:
@@ -100,9 +117,14 @@ def _write(rows, out: Path, scene_name: str):
              "| model | wall time (s) | " + " | ".join(KEYS) + " | max |",
              "| --- | ---: | " + " | ".join("---:" for _ in KEYS) + " | ---: |"]
     for r in rows:
+        if r.get("failure"):
+            lines.append(f"| {r['model']} | {r['wall_time_s']:.1f} | "
+                         + " | ".join("—" for _ in KEYS) + " | failed |")
+            continue
         lines.append(f"| {r['model']} | {r['wall_time_s']:.1f} | "
                      + " | ".join(f"{100 * r[f'error_{k}']:.1f} %" for k in KEYS)
                      + f" | {100 * r['max_error']:.1f} % |")
+    lines += ["", *(f"- {r['model']} failed: {r['failure']}." for r in rows if r.get("failure"))]
     (out / "fidelity.md").write_text("\n".join(lines) + "\n")
 
     import matplotlib
@@ -112,6 +134,8 @@ def _write(rows, out: Path, scene_name: str):
 
     fig, ax = plt.subplots(figsize=(6.4, 4.2))
     for r in rows:
+        if r.get("failure"):
+            continue
         ax.scatter(r["wall_time_s"], max(r["max_error"], 1e-6), s=30)
         ax.annotate(r["model"], (r["wall_time_s"], max(r["max_error"], 1e-6)), fontsize=8,
                     xytext=(4, 4), textcoords="offset points")
