@@ -103,6 +103,8 @@ class ModelOptions:
     #: "nitsche" (consistent) or "penalty" (robust at sharp tips): see contact.CONTACT_METHODS.
     contact: str = "nitsche"
     contact_theta: int = 0
+    #: Gap width (mm) over which the contact pressure's kink is smoothed (0: exact).
+    contact_smoothing: float = 0.0
     contact_gamma0: float = 10.0
     #: A converged state whose subcutaneous J falls below φ0 + margin is rejected.
     compaction_margin: float = 0.02
@@ -238,7 +240,7 @@ class FingertipProblem:
         self.contact = NitscheContact(
             self.u, P_contact, ds(tags["pulp_surface"]), self.obstacles,
             modulus=modulus, theta=options.contact_theta, gamma0=options.contact_gamma0,
-            method=options.contact,
+            method=options.contact, smoothing=options.contact_smoothing,
         )
         #: Surface element size (mm) under each indenter's tip; warns if it cannot hold it.
         self.tip_mesh_sizes = check_tip_resolution(self.contact)

@@ -266,6 +266,7 @@ class Recorder:
             log.close()
         for writer in self.writers:
             writer.close()
+        self.stepper.close()
         self.comm.barrier()
         summary = None
         if self.comm.rank == 0:

@@ -135,6 +135,18 @@ class TimeStepper:
         )
         self.snes = self.nonlinear.solver
 
+    def close(self) -> None:
+        """Destroy the solver's PETSc objects now, on every rank together.
+
+        Their destruction is collective (MUMPS broadcasts as it frees its factors). Left to
+        Python's garbage collector, it happens at different moments on different ranks (rank 0
+        alone draws the figures, which triggers a collection) and `mpiexec` runs hang at exit.
+        """
+        nonlinear = self.nonlinear
+        for obj in (nonlinear.solver, nonlinear.A, nonlinear.P_mat, nonlinear.b, nonlinear.x):
+            if obj is not None:
+                obj.destroy()
+
     def solve_once(self) -> tuple[int, int]:
         """One Newton solve from the current state; returns (converged reason, iterations)."""
         with np.errstate(all="ignore"):
