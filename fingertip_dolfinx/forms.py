@@ -331,6 +331,24 @@ class FingertipProblem:
                 )
         return None
 
+    def residual_hotspot(self, residual) -> np.ndarray | None:
+        """Reference position (mm) of the displacement node with the largest residual force in
+        `residual` (the solver's last residual vector: per rank, the owned u entries first),
+        or None if the residual is not finite anywhere to compare."""
+        n = self.V.dofmap.index_map.size_local
+        r = residual.getArray(readonly=True)[: 2 * n].reshape(-1, 2)
+        norms = np.linalg.norm(np.nan_to_num(r, nan=np.inf), axis=1)
+        local = float(norms.max()) if len(norms) else -1.0
+        comm = self.mesh.comm
+        largest = comm.allreduce(local, op=MPI.MAX)
+        if not largest > 0:
+            return None
+        owner = comm.allreduce(comm.rank if local == largest else comm.size, op=MPI.MIN)
+        where = None
+        if comm.rank == owner:
+            where = self.V.tabulate_dof_coordinates()[int(np.argmax(norms)), :2]
+        return comm.bcast(where, root=owner)
+
     def support_reaction(self) -> float:
         """The y-force (N/mm) the body passes to the clamped nail patch (> 0 pushes it +y).
 

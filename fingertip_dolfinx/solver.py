@@ -194,6 +194,12 @@ class TimeStepper:
                         break
                 else:
                     why = f"Newton did not converge ({_SNES_REASONS.get(reason, reason)})"
+                    hotspot = getattr(problem, "residual_hotspot", None)
+                    if hotspot is not None:
+                        where = hotspot(self.snes.getFunction()[0])
+                        if where is not None:
+                            why += (f"; the residual is largest near x = ({where[0]:.3f}, "
+                                    f"{where[1]:.3f}) mm")
                 problem.restore()
                 cuts += 1
                 dt = (t_new - t) * opts.cut

@@ -2,6 +2,7 @@
 a round-tipped bar, resuming an interrupted run, and the same numbers on 1 and 2 ranks."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -145,3 +146,22 @@ def test_two_point_sweep_reproduces_the_papers_trends(tmp_path_factory):
     assert v["u2"][4.0] > v["u2"][3.0] > v["u2"][2.0] > 0
     assert (out / "normalized_variation.csv").exists() and (out / "normalized_variation.png").exists()
     assert result["threshold_criterion"]
+
+
+def test_an_impossible_indentation_stops_clearly_and_keeps_the_results(tmp_path):
+    """9 mm into a pulp that is 7 mm thick down to the bone: the run must stop with a message
+    that says when, where and why, and leave every accepted step on disk."""
+    from fingertip_dolfinx.errors import ConvergenceError
+
+    scene = _one_point(["protocol.depth=9.0", "steps.dt_initial=0.01", "steps.dt_max=0.05",
+                        "steps.dt_min=0.005", "steps.max_cuts=2"])
+    with pytest.raises(ConvergenceError) as error:
+        run_scene(scene, tmp_path, progress=False, comm=MPI.COMM_SELF)
+    message = str(error.value)
+    assert re.search(r"failed \d times", message) and "Results up to t =" in message
+    assert "near x = (" in message  # where: an inverted element or the largest residual
+    saved = float(message.split("Results up to t = ")[1].split(" s")[0])
+    h = read_csv(tmp_path / "history.csv")
+    assert len(h["time_s"]) >= 1 and h["time_s"][-1] == pytest.approx(saved, rel=1e-5)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["converged"] is False and summary["failure"] == message
