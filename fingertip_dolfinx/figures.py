@@ -164,6 +164,37 @@ def plot_depth_profiles(depth: dict, path: Path, time_s: float, title: str = "")
     plt.close(fig)
 
 
+#: The paper's Figs 7-8: strains in x/y, shear strain and SED at one depth, per bar spacing.
+SPACING_QUANTITIES = (("e11", "horizontal log strain e11"), ("e22", "vertical log strain e22"),
+                      ("e12", "shear log strain e12"), ("sed_MPa", "strain energy density (MPa)"))
+
+
+def plot_spacing_profiles(runs: dict[float, dict], path: Path, time_s: float, depth_mm: float,
+                          title: str = "") -> None:
+    """One curve per bar spacing d (`runs[d]` = that run's depth_profiles.csv columns) at the
+    depth `depth_mm` and time `time_s`; the bar centres ±d/2 are marked (cf. Figs 7-8)."""
+    fig, axes = plt.subplots(2, 2, figsize=(9.6, 6.4), sharex=True)
+    colours = plt.cm.viridis(np.linspace(0.0, 0.9, len(runs)))
+    for colour, (d, depth) in zip(colours, sorted(runs.items(), reverse=True)):
+        rows = np.isclose(depth["time_s"], time_s) & np.isclose(depth["depth_mm"], depth_mm)
+        order = np.argsort(depth["x_mm"][rows])
+        for ax, (key, label) in zip(axes.ravel(), SPACING_QUANTITIES):
+            ax.plot(depth["x_mm"][rows][order], depth[key][rows][order], color=colour,
+                    label=f"d = {d:g} mm")
+            ax.plot([-d / 2, d / 2], [0.0, 0.0], "|", color=colour, ms=8)
+    for ax, (_, label) in zip(axes.ravel(), SPACING_QUANTITIES):
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    for ax in axes[1]:
+        ax.set_xlabel("x (mm); ticks on the axis: bar centres")
+        ax.set_xlim(-4.0, 4.0)
+    axes[0, 0].legend(fontsize=8)
+    fig.suptitle(f"{title} at depth {depth_mm:g} mm, t = {time_s:g} s")
+    fig.tight_layout()
+    fig.savefig(path, dpi=150)
+    plt.close(fig)
+
+
 def plot_field(corners: np.ndarray, values: np.ndarray, path: Path, label: str,
                title: str = "", cmap: str = "viridis", window=None) -> None:
     """A P1 field on triangles: `corners` (n, 3, 2) deformed positions, `values` (n, 3)."""

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
+from .figures import plot_spacing_profiles
 from .post import read_csv, write_json
 
 QUANTITIES = ("e11", "e22", "e12", "u2", "sed")
@@ -80,11 +81,13 @@ def run_sweep(scene_name: str, spacings, out: Path, overrides=(), progress=True)
         scene = load_scene(scene_name, list(overrides), spacing=spacings[0])
         t, depth_mm = scene.output_times[-1], scene.depths[0]
         table = {q: [] for q in QUANTITIES}
+        profiles = {d: read_csv(out / f"d{d:g}" / "depth_profiles.csv") for d in spacings}
         for d in spacings:
-            v = normalized_variation(read_csv(out / f"d{d:g}" / "depth_profiles.csv"), d, t,
-                                     depth_mm)
+            v = normalized_variation(profiles[d], d, t, depth_mm)
             for q in QUANTITIES:
                 table[q].append(v[q])
+        plot_spacing_profiles(profiles, out / "profiles_by_spacing.png", t, depth_mm,
+                              title=f"{scene.name}: two bars at spacing d")
         with (out / "normalized_variation.csv").open("w") as f:
             f.write("spacing_mm," + ",".join(QUANTITIES) + "\n")
             for i, d in enumerate(spacings):

@@ -144,7 +144,8 @@ def test_two_point_sweep_reproduces_the_papers_trends(tmp_path_factory):
         assert plateau < 0.05 * abs(v[q][4.0]), (q, v[q])
         assert v[q][3.0] - v[q][2.0] > 2 * plateau, (q, v[q])
     assert v["u2"][4.0] > v["u2"][3.0] > v["u2"][2.0] > 0
-    assert (out / "normalized_variation.csv").exists() and (out / "normalized_variation.png").exists()
+    for name in ("normalized_variation.csv", "normalized_variation.png", "profiles_by_spacing.png"):
+        assert (out / name).exists(), name
     assert result["threshold_criterion"]
 
 
