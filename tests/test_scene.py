@@ -166,3 +166,20 @@ def test_an_impossible_indentation_stops_clearly_and_keeps_the_results(tmp_path)
     assert len(h["time_s"]) >= 1 and h["time_s"][-1] == pytest.approx(saved, rel=1e-5)
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["converged"] is False and summary["failure"] == message
+
+
+def test_shear_variation_is_the_peak_to_peak_around_each_point():
+    """e12 is odd and changes sign under each bar: its normalised variation compares the
+    peak-to-peak over one bar width around the contact point and around the centre. Two sharp
+    steps of height 2 at the bars, flat between them: ≈ 1; a straight line: exactly 0."""
+    from fingertip_dolfinx.sweep import normalized_variation
+
+    x = np.linspace(-6.0, 6.0, 2401)
+    d = 3.0
+    columns = {c: np.ones_like(x) for c in ("e11", "e22", "u2_mm", "sed_MPa")}
+    base = {"time_s": np.ones_like(x), "depth_mm": np.full_like(x, 0.75), "x_mm": x, **columns}
+    steps = np.tanh((x - d / 2) / 0.01) + np.tanh((x + d / 2) / 0.01)
+    assert normalized_variation(base | {"e12": steps}, d, 1.0, 0.75)["e12"] == pytest.approx(
+        1.0, abs=1e-6)
+    assert normalized_variation(base | {"e12": 0.1 * x}, d, 1.0, 0.75)["e12"] == pytest.approx(
+        0.0, abs=1e-12)
