@@ -25,8 +25,8 @@ of the nearest indenter. Its force counts towards that indenter.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -36,7 +36,7 @@ from dolfinx import fem, mesh as dmesh
 from mpi4py import MPI
 
 from .errors import InputError
-from .indenters import Indenter, tip_radius
+from .indenters import Indenter
 
 #: The surface elements under an indenter's tip must not be longer than this many tip radii:
 #: a tip narrower than the spacing of the surface quadrature points slips between them and
@@ -256,7 +256,7 @@ def check_tip_resolution(contact: NitscheContact) -> list[float]:
     sizes = []
     for o in contact.obstacles:
         h = surface_mesh_size_at(contact.facets, domain, o.indenter.centre_x)
-        r = tip_radius(o.indenter)
+        r = o.indenter.tip_curvature_radius()
         sizes.append(h)
         if h > TIP_RESOLUTION * r:
             warnings.warn(

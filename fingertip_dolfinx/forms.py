@@ -311,11 +311,10 @@ class FingertipProblem:
         else:
             local = (np.inf, -1)
         J_min = comm.allreduce(local[0], op=MPI.MIN)
-        owner = comm.allreduce(comm.rank if local[0] == J_min else comm.size, op=MPI.MIN)
-        where = np.zeros(2)
-        if comm.rank == owner:
-            where = self.mesh.geometry.x[self.mesh.geometry.dofmaps[0][local[1]], :2].mean(axis=0)
-        return J_min, comm.bcast(where, root=owner)
+        geometry = self.mesh.geometry
+        return J_min, _from_holder(
+            comm, local[0] == J_min,
+            lambda: geometry.x[geometry.dofmaps[0][local[1]], :2].mean(axis=0))
 
     def inadmissible(self) -> str | None:
         J_min, where = self.min_jacobian()
@@ -343,11 +342,8 @@ class FingertipProblem:
         largest = comm.allreduce(local, op=MPI.MAX)
         if not largest > 0:
             return None
-        owner = comm.allreduce(comm.rank if local == largest else comm.size, op=MPI.MIN)
-        where = None
-        if comm.rank == owner:
-            where = self.V.tabulate_dof_coordinates()[int(np.argmax(norms)), :2]
-        return comm.bcast(where, root=owner)
+        return _from_holder(comm, local == largest,
+                            lambda: self.V.tabulate_dof_coordinates()[int(np.argmax(norms)), :2])
 
     def support_reaction(self) -> float:
         """The y-force (N/mm) the body passes to the clamped nail patch (> 0 pushes it +y).
@@ -428,6 +424,13 @@ class FingertipProblem:
         nodes = nodes[nodes < V.dofmap.index_map.size_local]
         X = V.tabulate_dof_coordinates()[nodes, :2]
         return X, X + self.u.x.array.reshape(-1, 2)[nodes]
+
+
+def _from_holder(comm: MPI.Comm, holds: bool, value):
+    """`value()` evaluated on the lowest rank where `holds` (e.g. it owns the extreme of a
+    reduction) and broadcast to every rank."""
+    owner = comm.allreduce(comm.rank if holds else comm.size, op=MPI.MIN)
+    return comm.bcast(value() if comm.rank == owner else None, root=owner)
 
 
 def _small_strain_stress(u, E: float, nu: float):

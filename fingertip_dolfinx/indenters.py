@@ -67,6 +67,10 @@ class Indenter:
         """(φ, n_x, n_y) at the point (px, py), components in the backend `ops`."""
         raise NotImplementedError
 
+    def tip_curvature_radius(self) -> float:
+        """Radius of curvature at the tip (mm): what the surface mesh must resolve."""
+        return math.inf  # flat
+
     def signed_distance(self, x, y_tip) -> tuple[ufl.core.expr.Expr, ufl.core.expr.Expr]:
         """UFL (φ, n) at the current position `x` (a UFL 2-vector, e.g. X + u).
 
@@ -106,6 +110,9 @@ class Cylinder(Indenter):
     radius: float
     shape: ClassVar[str] = "cylinder"
 
+    def tip_curvature_radius(self) -> float:
+        return self.radius
+
     def _distance(self, px, py, y_tip, ops):
         dx, dy = px - self.centre_x, py - (y_tip - self.radius)
         d = ops.sqrt(dx * dx + dy * dy)
@@ -119,6 +126,9 @@ class _RoundCone(Indenter):
     def _tip(self) -> tuple[float, float]:
         """(r, α) of the shape."""
         raise NotImplementedError
+
+    def tip_curvature_radius(self) -> float:
+        return self._tip()[0]
 
     def _distance(self, px, py, y_tip, ops):
         r, alpha = self._tip()
@@ -181,15 +191,6 @@ class Bar(_RoundCone):
 
     def _tip(self):
         return self.width / 2, 0.0
-
-
-def tip_radius(indenter: Indenter) -> float:
-    """Radius of curvature of the indenter at its tip (mm; inf for the flat plate)."""
-    if isinstance(indenter, _RoundCone):
-        return indenter._tip()[0]
-    if isinstance(indenter, Cylinder):
-        return indenter.radius
-    return math.inf
 
 
 SHAPES: dict[str, type[Indenter]] = {cls.shape: cls for cls in (Wedge, Bar, Plate, Cylinder)}

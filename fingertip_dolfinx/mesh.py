@@ -270,7 +270,8 @@ def _set_sizes(section: Section, regions: dict[str, list[int]], curves: dict[str
         field.setNumber(tip, "SizeMin", opts.tip_size)
         field.setNumber(tip, "SizeMax", opts.bone_size)
         field.setNumber(tip, "DistMin", opts.tip_zone)
-        field.setNumber(tip, "DistMax", opts.tip_zone + (opts.bone_size - opts.tip_size) / SIZE_GROWTH)
+        growth_distance = (opts.bone_size - opts.tip_size) / SIZE_GROWTH
+        field.setNumber(tip, "DistMax", opts.tip_zone + growth_distance)
         fields.append(tip)
     size = field.add("Min")
     field.setNumbers(size, "FieldsList", fields)

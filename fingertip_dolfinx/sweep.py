@@ -10,9 +10,10 @@ with the contact point under a bar centre (x = ±d/2, the two sides averaged) an
 x = 0. The shear strain e12 is odd about x = 0 and changes sign under each bar, so its value at
 both points is ~0 and the formula degenerates; for e12, f is its peak-to-peak variation over a
 window one bar width wide around the point (the paper's "peak-to-peak variations in the strain
-around the contact point", its Fig. 8), our reading of the paper for this quantity. Two bars read as two when the field dips between them, so V is large; as d shrinks the
-dip fills in. The paper gives no quantitative criterion; ours, fixed here and reported with the
-result: the threshold is the spacing at which the mean of V over e11, e22 and SED (the
+around the contact point", its Fig. 8), our reading of the paper for this quantity. Two bars
+read as two when the field dips between them, so V is large; as d shrinks the dip fills in.
+The paper gives no quantitative criterion; ours, fixed here and reported with the result: the
+threshold is the spacing at which the mean of V over e11, e22 and SED (the
 quantities the paper names) falls `DROP` = 10 % below its value at the largest spacing, i.e. the
 dip between the bars has lost a tenth of what well separated bars produce; linear
 interpolation between the computed spacings.

@@ -36,7 +36,8 @@ def _problem(mesh_options, gamma0=100.0, contact="penalty"):
     # (scenes/line-load.toml says why).
     options = ModelOptions(subcutaneous="biphasic", contact=contact, contact_gamma0=gamma0,
                            contact_smoothing=1e-4)
-    problem = FingertipProblem(build_mesh(section), [load_indenter("wedge")], history, options=options)
+    problem = FingertipProblem(build_mesh(section), [load_indenter("wedge")], history,
+                               options=options)
     return problem, history
 
 

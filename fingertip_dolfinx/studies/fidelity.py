@@ -56,7 +56,7 @@ def run_fidelity_study(scene_name: str, out: Path, overrides=(), progress: bool 
             # under a sharp tip inverts elements): record it, go on with the ladder.
             if name == REFERENCE:
                 raise
-            failures[name] = str(error).split(". Results")[0]
+            failures[name] = str(error)
             summary = json.loads((out / _slug(name) / "summary.json").read_text())
             results[name] = {"wall_time_s": summary["wall_time_s"], "dofs": summary["dofs"],
                              **dict.fromkeys(KEYS, math.nan)}
@@ -124,7 +124,7 @@ def _write(rows, out: Path, scene_name: str):
         lines.append(f"| {r['model']} | {r['wall_time_s']:.1f} | "
                      + " | ".join(f"{100 * r[f'error_{k}']:.1f} %" for k in KEYS)
                      + f" | {100 * r['max_error']:.1f} % |")
-    lines += ["", *(f"- {r['model']} failed: {r['failure']}." for r in rows if r.get("failure"))]
+    lines += ["", *(f"- {r['model']} failed: {r['failure']}" for r in rows if r.get("failure"))]
     (out / "fidelity.md").write_text("\n".join(lines) + "\n")
 
     import matplotlib
