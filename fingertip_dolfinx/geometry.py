@@ -1,4 +1,4 @@
-"""The fingertip cross-section as validated data, read from TOML files (`geometry/fingertip/`).
+"""The fingertip cross-section as validated data, read from TOML files (built in: `fingertip_dolfinx/data/sections/`).
 
 Conventions (docs/DESIGN.md): lengths in mm, the origin at the centre of the outer ellipse, `x`
 across the finger, `y` from the pulp (`y < 0`) to the nail (`y > 0`).
@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -29,10 +28,11 @@ import numpy as np
 from scipy.integrate import quad
 from scipy.optimize import brentq
 
+from .datafiles import builtin_dir, find, read_toml
 from .errors import InputError
 
-DATA_DIR = Path(__file__).resolve().parents[1] / "geometry"
-SECTIONS_DIR = DATA_DIR / "fingertip"
+#: The built-in sections (inside the package: `fingertip_dolfinx/data/sections/`).
+SECTIONS_DIR = builtin_dir("sections")
 
 # Thinnest subcutaneous layer allowed between the bone and the skin: thinner is not a tissue
 # layer one can mesh sensibly, and it hides a geometry that is almost certainly a typo.
@@ -376,17 +376,7 @@ _KEYS = {
 
 def section_path(source: str | Path) -> Path:
     """A built-in section by name (`male-index`) or a TOML file path."""
-    path = Path(source)
-    if path.suffix != ".toml" and not path.exists():
-        path = SECTIONS_DIR / f"{source}.toml"
-    if not path.is_file():
-        builtin = sorted(p.stem for p in SECTIONS_DIR.glob("*.toml"))
-        raise InputError(
-            str(source),
-            f"no such section file ({path}).",
-            f"give a TOML file path or a built-in name from {SECTIONS_DIR}: {', '.join(builtin)}.",
-        )
-    return path
+    return find("sections", source, "section")
 
 
 def load_section(source: str | Path = "male-index", overrides: dict | None = None) -> Section:
@@ -396,11 +386,7 @@ def load_section(source: str | Path = "male-index", overrides: dict | None = Non
     `overrides` has the tables of a section file ({"mesh": {"min_size": 0.05}}) and wins.
     """
     path = section_path(source)
-    try:
-        with path.open("rb") as f:
-            data = tomllib.load(f)
-    except tomllib.TOMLDecodeError as e:
-        raise InputError(str(path), f"is not valid TOML: {e}.", "fix the syntax.") from None
+    data = read_toml(path)
     for table, values in (overrides or {}).items():
         if not isinstance(values, dict):
             raise InputError(f"section.{table}", "must be a table.", f"write [section.{table}].")

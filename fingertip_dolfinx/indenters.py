@@ -14,7 +14,6 @@ flank angle, and no part of a finger ever reaches the indenter's body below it.
 from __future__ import annotations
 
 import math
-import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass, fields
 from pathlib import Path
@@ -23,10 +22,11 @@ from typing import Any, ClassVar
 import numpy as np
 import ufl
 
+from .datafiles import builtin_dir, find, read_toml
 from .errors import InputError
 
 #: The built-in indenters, loadable by name (`load_indenter("wedge")`).
-BUILTIN_DIR = Path(__file__).resolve().parents[1] / "geometry" / "indenters"
+BUILTIN_DIR = builtin_dir("indenters")
 
 
 @dataclass(frozen=True)
@@ -226,18 +226,6 @@ def make_indenter(data: dict[str, Any], where: str = "indenter") -> Indenter:
 
 def load_indenter(source: str | Path) -> Indenter:
     """A built-in indenter by name ("wedge", "bar", "plate", "cylinder") or a TOML file path."""
-    path = Path(source)
-    if path.suffix != ".toml" and not path.exists():
-        path = BUILTIN_DIR / f"{source}.toml"
-    if not path.is_file():
-        builtins = sorted(p.stem for p in BUILTIN_DIR.glob("*.toml"))
-        raise InputError(
-            f"indenter {str(source)!r}", f"no such file ({path}).",
-            f"give a path to a .toml file, or a built-in name: {', '.join(builtins)} "
-            f"(in {BUILTIN_DIR}).",
-        )
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as error:
-        raise InputError(str(path), f"is not valid TOML: {error}.") from None
+    path = find("indenters", source, "indenter")
+    data = read_toml(path)
     return make_indenter(data, where=str(path))

@@ -13,7 +13,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-import ufl
 from dolfinx import fem, io
 from mpi4py import MPI
 

@@ -1,13 +1,12 @@
 """Experiments as data: a scene file names the section, the indenters, the protocol, the model
 and the outputs; `run_scene` builds the problem, steps it, and writes results as it goes.
 
-Scene files live in `<repo>/scenes/` (`line-load`, `1pt`, `2pt`) or anywhere as TOML. The
+Built-in scene files live in `fingertip_dolfinx/data/scenes/` (`line-load`, `1pt`, `2pt`) or anywhere as TOML. The
 command line only picks a scene and overrides keys (`--set model.subcutaneous=drained`).
 """
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 import json
 import time
@@ -15,12 +14,14 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .datafiles import builtin_dir, find, read_toml
 from .errors import ConvergenceError, InputError
 from .geometry import load_section
 from .indenters import load_indenter, make_indenter
 from .loading import history_from_dict
 
-SCENES_DIR = Path(__file__).resolve().parents[1] / "scenes"
+#: The built-in scenes (inside the package: `fingertip_dolfinx/data/scenes/`).
+SCENES_DIR = builtin_dir("scenes")
 TABLES = ("name", "description", "section", "spacing", "indenters", "protocol", "model",
           "steps", "solver", "output")
 
@@ -46,14 +47,7 @@ class Scene:
 
 
 def scene_path(source: str | Path) -> Path:
-    path = Path(source)
-    if path.suffix != ".toml" and not path.exists():
-        path = SCENES_DIR / f"{source}.toml"
-    if not path.is_file():
-        names = sorted(p.stem for p in SCENES_DIR.glob("*.toml"))
-        raise InputError(f"scene {str(source)!r}", f"no such file ({path}).",
-                         f"give a scene TOML file or a built-in scene: {', '.join(names)}.")
-    return path
+    return find("scenes", source, "scene")
 
 
 def parse_override(text: str) -> tuple[list[str], object]:
@@ -72,11 +66,7 @@ def parse_override(text: str) -> tuple[list[str], object]:
 def load_scene(source: str | Path, overrides: list[str] = (), spacing: float | None = None) -> Scene:
     """Read a scene file, apply `key=value` overrides, and validate everything."""
     path = scene_path(source)
-    try:
-        data = tomllib.loads(path.read_text())
-    except tomllib.TOMLDecodeError as e:
-        raise InputError(str(path), f"is not valid TOML: {e}.", "fix the syntax.") from None
-    data = copy.deepcopy(data)
+    data = read_toml(path)
     for text in overrides:
         keys, value = parse_override(text)
         node = data

@@ -1,0 +1,55 @@
+"""Data files: the built-in ones shipped inside the package, and the user's own TOML files.
+
+Built-in files live in `fingertip_dolfinx/data/<kind>/` (`scenes`, `sections`, `indenters`,
+`materials`) and are found with `importlib.resources`, so a non-editable install (a wheel in
+site-packages) finds them as well as a source checkout does. A file is named either by the
+stem of a built-in one (`line-load`) or by a path (`./my-scene.toml`).
+"""
+
+from __future__ import annotations
+
+import tomllib
+from importlib.resources import files
+from pathlib import Path
+
+from .errors import InputError
+
+KINDS = ("scenes", "sections", "indenters", "materials")
+
+
+def builtin_dir(kind: str) -> Path:
+    """The folder of the built-in files of one kind (a real folder: the package is never
+    imported from a zip archive, its DOLFINx dependency cannot be)."""
+    if kind not in KINDS:
+        raise ValueError(f"unknown kind of data file {kind!r}; one of {KINDS}")
+    return Path(str(files("fingertip_dolfinx") / "data" / kind))
+
+
+def builtin_names(kind: str) -> list[str]:
+    return sorted(p.stem for p in builtin_dir(kind).glob("*.toml"))
+
+
+def find(kind: str, source: str | Path, what: str) -> Path:
+    """The file named by `source`: a path to a TOML file, or the stem of a built-in one.
+
+    `what` names the input in the error ("scene", "section", ...).
+    """
+    path = Path(source)
+    if path.suffix != ".toml" and not path.exists():
+        path = builtin_dir(kind) / f"{source}.toml"
+    if not path.is_file():
+        raise InputError(
+            str(source), f"no such {what} file (no such file: {path}).",
+            f"give a path to a .toml file, or a built-in {what}: "
+            f"{', '.join(builtin_names(kind))} (in {builtin_dir(kind)}).")
+    return path
+
+
+def read_toml(path: str | Path) -> dict:
+    """The tables of a TOML file; a syntax error names the file and the line."""
+    path = Path(path)
+    try:
+        with path.open("rb") as f:
+            return tomllib.load(f)
+    except tomllib.TOMLDecodeError as error:
+        raise InputError(str(path), f"is not valid TOML: {error}.", "fix the syntax.") from None
