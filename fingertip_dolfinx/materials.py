@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import MISSING, dataclass, fields
+from dataclasses import MISSING, dataclass, field, fields
 
 import numpy as np
 import ufl
@@ -87,7 +87,7 @@ class Hyperfoam:
     mu: tuple[float, ...]  # MPa
     alpha: tuple[float, ...]
     nu: float
-    where: str = "hyperfoam"
+    where: str = field(default="hyperfoam", compare=False, repr=False)
 
     def __post_init__(self):
         w = self.where
@@ -189,7 +189,7 @@ class LinearElastic:
 
     E: float  # MPa
     nu: float
-    where: str = "linear elastic"
+    where: str = field(default="linear elastic", compare=False, repr=False)
 
     def __post_init__(self):
         E, nu = _float(self.where, "E", self.E), _float(self.where, "nu", self.nu)
@@ -250,7 +250,7 @@ class Prony:
 
     g: tuple[float, ...]
     tau: tuple[float, ...]  # s
-    where: str = "prony"
+    where: str = field(default="prony", compare=False, repr=False)
 
     def __post_init__(self):
         g = _floats(self.where, "g", self.g)
@@ -295,7 +295,7 @@ class HolmesMow:
     phi0: float  # solid volume fraction in the reference state
     kappa: float
     M: float
-    where: str = "Holmes-Mow permeability"
+    where: str = field(default="Holmes-Mow permeability", compare=False, repr=False)
 
     def __post_init__(self):
         vals = {k: _float(self.where, k, getattr(self, k)) for k in ("k0", "phi0", "kappa", "M")}
@@ -325,15 +325,53 @@ class HolmesMow:
 
 
 @dataclass(frozen=True)
+class ConstantPermeability:
+    """k(J) = k0: a deformation-independent permeability (small strains, or a reference case)."""
+
+    k0: float  # mm⁴/(N·s)
+    where: str = field(default="constant permeability", compare=False, repr=False)
+
+    def __post_init__(self):
+        k0 = _float(self.where, "k0", self.k0)
+        if not k0 > 0:
+            raise InputError(self.where, f"'k0' = {k0} is not positive (mm^4/(N s)).")
+        object.__setattr__(self, "k0", k0)
+
+    @classmethod
+    def from_dict(cls, data: Mapping, where: str = "constant permeability"):
+        return _from_dict(cls, data, where)
+
+    def permeability(self, J) -> ufl.core.expr.Expr:
+        return self.k0 + 0.0 * J
+
+    def permeability_np(self, J) -> np.ndarray:
+        return np.full_like(np.asarray(J, dtype=float), self.k0)
+
+
+@dataclass(frozen=True)
 class Biphasic:
-    """Solid (hyperfoam) + inviscid fluid with Holmes–Mow permeability."""
+    """Solid (hyperfoam) + inviscid fluid, with a permeability law and the solid volume
+    fraction φ0 (J may not fall to φ0: the pores would be closed). φ0 defaults to the
+    permeability law's own (Holmes–Mow carries one) and must agree with it if both are given."""
 
     solid: Hyperfoam
-    permeability: HolmesMow
+    permeability: HolmesMow | ConstantPermeability
+    phi0: float | None = None
+    where: str = field(default="biphasic", compare=False, repr=False)
 
-    @property
-    def phi0(self) -> float:
-        return self.permeability.phi0
+    def __post_init__(self):
+        own = getattr(self.permeability, "phi0", None)
+        phi0 = own if self.phi0 is None else _float(self.where, "phi0", self.phi0)
+        if phi0 is None:
+            raise InputError(self.where, "the solid volume fraction 'phi0' is missing.",
+                             "give phi0 = 1/(1 + e0), e.g. 0.4.")
+        if not 0 < phi0 < 1:
+            raise InputError(self.where, f"'phi0' = {phi0} is not in (0, 1).",
+                             "phi0 is the solid volume fraction, 1/(1 + e0).")
+        if own is not None and own != phi0:
+            raise InputError(self.where, f"'phi0' = {phi0} differs from the permeability "
+                             f"law's phi0 = {own}.", "give one value.")
+        object.__setattr__(self, "phi0", phi0)
 
 
 def check_compaction(J_min: float, where: str, phi0: float, margin: float = 0.0) -> None:

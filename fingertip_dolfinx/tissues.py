@@ -1,0 +1,202 @@
+"""The tissues of the four regions as data: one materials file (TOML) per parameter set.
+
+A materials file has a table per region, each naming its law and giving its parameters:
+
+    [skin]               model = "hyperfoam"; mu, alpha, nu         (+ optional [skin.prony]: g, tau)
+    [subcutaneous]       model = "biphasic";  mu, alpha, nu, phi0   (+ [subcutaneous.permeability])
+    [subcutaneous.permeability]  law = "holmes-mow" (k0, kappa, M) | "constant" (k0)
+    [bone], [nail]       model = "linear-elastic" (E, nu) | "rigid"
+
+The built-in sets live in `fingertip_dolfinx/data/materials/` (`wu2004`: the paper's Table 1).
+A scene names its set in `[materials] set = "..."` and may override any value in the same
+tables (`[materials.subcutaneous.permeability] k0 = 1e-2`, or on the command line
+`--set materials.subcutaneous.permeability.k0=1e-2`). Every value is validated by the law that
+takes it; an error names the file, the table and the key.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+from .datafiles import find, read_toml
+from .errors import InputError
+from .materials import (
+    Biphasic,
+    ConstantPermeability,
+    HolmesMow,
+    Hyperfoam,
+    LinearElastic,
+    Prony,
+)
+from .validation import check_keys
+
+REGIONS = ("skin", "subcutaneous", "bone", "nail")
+DEFAULT_SET = "wu2004"
+
+
+@dataclass(frozen=True)
+class Rigid:
+    """A region held rigidly in place (bone, nail): its nodes are clamped, it has no law."""
+
+    where: str = "rigid"
+
+
+@dataclass(frozen=True)
+class Tissues:
+    """The materials of the four regions."""
+
+    skin: Hyperfoam
+    skin_prony: Prony | None
+    subcutaneous: Biphasic
+    bone: LinearElastic | Rigid
+    nail: LinearElastic | Rigid
+    name: str = "custom"
+
+    def rigid_regions(self) -> tuple[str, ...]:
+        return tuple(r for r in ("bone", "nail") if isinstance(getattr(self, r), Rigid))
+
+    def record(self) -> dict:
+        """The whole parameter set as plain data, in the materials file's own format."""
+        sub = self.subcutaneous
+        skin = {"model": "hyperfoam", **_hyperfoam_record(self.skin)}
+        if self.skin_prony is not None:
+            skin["prony"] = {"g": list(self.skin_prony.g), "tau": list(self.skin_prony.tau)}
+        return {
+            "name": self.name,
+            "skin": skin,
+            "subcutaneous": {"model": "biphasic", **_hyperfoam_record(sub.solid),
+                             "phi0": sub.phi0, "permeability": _permeability_record(sub)},
+            "bone": _solid_record(self.bone),
+            "nail": _solid_record(self.nail),
+        }
+
+
+# --- reading ----------------------------------------------------------------------------------
+
+
+def load_materials(source: str | Path = DEFAULT_SET, overrides: Mapping | None = None) -> Tissues:
+    """A materials set by built-in name (`wu2004`) or path, with `overrides` (same tables)
+    merged over it."""
+    path = find("materials", source, "materials set")
+    data = merge(read_toml(path), overrides or {})
+    data.setdefault("name", path.stem)
+    return tissues_from_dict(data, where=str(path))
+
+
+def tissues_from_dict(data: Mapping, where: str = "materials") -> Tissues:
+    """Build and validate the four regions' materials from a materials file's tables."""
+    check_keys(where, data, ("name", "description", *REGIONS), required=REGIONS, what="table")
+    return Tissues(
+        skin=_skin(data["skin"], f"{where}: skin"),
+        skin_prony=_prony(data["skin"].get("prony"), f"{where}: skin.prony"),
+        subcutaneous=_biphasic(data["subcutaneous"], f"{where}: subcutaneous"),
+        bone=_solid(data["bone"], f"{where}: bone"),
+        nail=_solid(data["nail"], f"{where}: nail"),
+        name=str(data.get("name", "custom")),
+    )
+
+
+def merge(base: Mapping, overrides: Mapping) -> dict:
+    """`base` with the values of `overrides` put in, table by table (a deep merge).
+
+    A table whose law changes (another `model` or `law`) is replaced, not merged: the old
+    law's parameters would not fit the new one.
+    """
+    out = dict(base)
+    for key, value in overrides.items():
+        if isinstance(value, Mapping) and isinstance(out.get(key), Mapping) and not any(
+            k in value and value[k] != out[key].get(k) for k in ("model", "law")
+        ):
+            out[key] = merge(out[key], value)
+        else:
+            out[key] = value
+    return out
+
+
+def _model(data: Mapping, where: str, choices: tuple[str, ...]) -> str:
+    if not isinstance(data, Mapping):
+        raise InputError(where, f"must be a table, got {data!r}.", f"write [{where}].")
+    model = data.get("model", choices[0])
+    if model not in choices:
+        raise InputError(f"{where}.model", f"unknown model {model!r}.",
+                         f"use one of {', '.join(choices)}.")
+    return model
+
+
+def _hyperfoam(data: Mapping, where: str, extra: tuple[str, ...] = ()) -> Hyperfoam:
+    """The hyperfoam parameters of a table (the keys in `extra` belong to the caller)."""
+    params = {k: v for k, v in data.items() if k not in extra}
+    return Hyperfoam.from_dict(params, where=where)
+
+
+def _skin(data: Mapping, where: str) -> Hyperfoam:
+    _model(data, where, ("hyperfoam",))
+    return _hyperfoam(data, where, extra=("model", "prony"))
+
+
+def _prony(data: Mapping | None, where: str) -> Prony | None:
+    if data is None:
+        return None
+    return Prony.from_dict(data, where=where)
+
+
+def _biphasic(data: Mapping, where: str) -> Biphasic:
+    _model(data, where, ("biphasic",))
+    check_keys(where, data, ("model", "mu", "alpha", "nu", "phi0", "permeability"),
+               required=("mu", "alpha", "nu", "phi0", "permeability"))
+    solid = _hyperfoam(data, where, extra=("model", "phi0", "permeability"))
+    permeability = _permeability(data["permeability"], data["phi0"], f"{where}.permeability")
+    return Biphasic(solid, permeability, phi0=data["phi0"], where=where)
+
+
+def _permeability(data: Mapping, phi0, where: str) -> HolmesMow | ConstantPermeability:
+    if not isinstance(data, Mapping):
+        raise InputError(where, f"must be a table, got {data!r}.", f"write [{where}].")
+    law = data.get("law", "holmes-mow")
+    params = {k: v for k, v in data.items() if k != "law"}
+    if law == "holmes-mow":
+        return HolmesMow.from_dict({**params, "phi0": phi0}, where=where)
+    if law == "constant":
+        return ConstantPermeability.from_dict(params, where=where)
+    raise InputError(f"{where}.law", f"unknown permeability law {law!r}.",
+                     "use holmes-mow or constant.")
+
+
+def _solid(data: Mapping, where: str) -> LinearElastic | Rigid:
+    model = _model(data, where, ("linear-elastic", "rigid"))
+    params = {k: v for k, v in data.items() if k != "model"}
+    if model == "rigid":
+        if params:
+            raise InputError(where, f"a rigid region takes no parameters, got {sorted(params)}.",
+                             "remove them, or use model = \"linear-elastic\".")
+        return Rigid(where=where)
+    return LinearElastic.from_dict(params, where=where)
+
+
+# --- recording ------------------------------------------------------------------------------
+
+
+def _hyperfoam_record(h: Hyperfoam) -> dict:
+    nu = h.nu if isinstance(h.nu, float) else list(h.nu)
+    return {"mu": list(h.mu), "alpha": list(h.alpha), "nu": nu}
+
+
+def _permeability_record(b: Biphasic) -> dict:
+    k = b.permeability
+    if isinstance(k, HolmesMow):
+        return {"law": "holmes-mow", "k0": k.k0, "kappa": k.kappa, "M": k.M}
+    return {"law": "constant", "k0": k.k0}
+
+
+def _solid_record(m: LinearElastic | Rigid) -> dict:
+    if isinstance(m, Rigid):
+        return {"model": "rigid"}
+    return {"model": "linear-elastic", **{f.name: getattr(m, f.name)
+                                          for f in dataclasses.fields(m) if f.name != "where"}}
+
+
+#: The paper's set (Wu et al. 2004, Table 1), read from the built-in file `wu2004`.
+WU2004 = load_materials(DEFAULT_SET)
