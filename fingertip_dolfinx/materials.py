@@ -21,7 +21,6 @@ import ufl
 from .errors import CompactionError, InputError
 from .kinematics import eigen_sum, right_cauchy_green
 
-
 # --------------------------------------------------------------------------------------------
 # validation helpers
 
