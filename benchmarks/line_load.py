@@ -14,12 +14,13 @@ import tempfile
 import time
 from pathlib import Path
 
-import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from fingertip_dolfinx.post import read_csv
-from fingertip_dolfinx.scene import load_scene, run_scene
+import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
+from fingertip_dolfinx.outputs import read_csv
+from fingertip_dolfinx.run import run_scene
+from fingertip_dolfinx.scene import load_scene
 
 EVENTS = {"residual": "SNESFunctionEval", "jacobian": "SNESJacobianEval",
           "factorisation": "MatLUFactorNum", "solve": "KSPSolve"}

@@ -157,40 +157,20 @@ FIDELITY_COARSE = ("section.mesh.min_size=0.2", "section.mesh.max_size=1.0",
 
 def _scene_overrides(args) -> list[str]:
     """--config FILE's keys as KEY=VALUE overrides, followed by the --set ones."""
-    import tomllib
+    from .datafiles import read_toml
+    from .scene import overrides_as_text
 
     overrides = []
     if args.config is not None:
-        try:
-            data = tomllib.loads(args.config.read_text())
-        except FileNotFoundError:
-            raise InputError(f"--config {args.config}", "no such file.") from None
-        except tomllib.TOMLDecodeError as e:
-            raise InputError(f"--config {args.config}", f"is not valid TOML: {e}.") from None
-
-        def flatten(prefix, node):
-            for key, value in node.items():
-                if isinstance(value, dict):
-                    yield from flatten(f"{prefix}{key}.", value)
-                else:
-                    yield f"{prefix}{key}={_toml_value(value)}"
-
-        overrides += list(flatten("", data))
+        if not args.config.is_file():
+            raise InputError(f"--config {args.config}", "no such file.")
+        overrides += overrides_as_text(read_toml(args.config))
     return overrides + list(args.overrides)
 
 
-def _toml_value(value) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, str):
-        return json.dumps(value)
-    if isinstance(value, list):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    return repr(value)
-
-
 def _run_scene(args) -> int:
-    from .scene import load_scene, run_scene
+    from .run import run_scene
+    from .scene import load_scene
 
     overrides = _scene_overrides(args)
     if args.fidelity == "auto":
@@ -248,13 +228,13 @@ def _run_sweep(args) -> int:
 
 
 def _run_mesh(args) -> int:
+    from mpi4py import MPI
     from rich.console import Console
     from rich.table import Table
 
     from .figures import plot_tagged_mesh
     from .geometry import load_section
     from .mesh import build_mesh, report_dict, write_xdmf
-    from mpi4py import MPI
 
     comm = MPI.COMM_WORLD
     section = _with_mesh_options(

@@ -46,37 +46,18 @@ from .indenters import Indenter
 from .kinematics import deformation_gradient
 from .loading import History
 from .materials import (
-    BONE,
-    NAIL,
-    SKIN,
-    SKIN_PRONY,
-    SUBCUTANEOUS_BIPHASIC,
-    Biphasic,
-    Hyperfoam,
-    LinearElastic,
-    Prony,
     first_piola_kirchhoff,
     second_piola_kirchhoff,
 )
 from .mesh import FingertipMesh
 from .poroelasticity import mass_residual
+from .tissues import WU2004, Tissues
 from .viscoelasticity import QuasiLinearViscoelasticity
 
 SUBCUTANEOUS_MODELS = ("biphasic", "undrained", "drained")
 #: Points per surface facet at which the deformed pulp is sampled to find a tip's depth.
 TIP_SAMPLES = 9
 TISSUE_MODELS = ("layered", "continuum")
-
-
-@dataclass(frozen=True)
-class Tissues:
-    """The materials of the four regions (the paper's sets by default)."""
-
-    skin: Hyperfoam = SKIN
-    skin_prony: Prony | None = SKIN_PRONY
-    subcutaneous: Biphasic = SUBCUTANEOUS_BIPHASIC
-    bone: LinearElastic = BONE
-    nail: LinearElastic = NAIL
 
 
 @dataclass(frozen=True)
@@ -150,7 +131,7 @@ class FingertipProblem:
         fmesh: FingertipMesh,
         indenters: Sequence[Indenter],
         history: History,
-        tissues: Tissues = Tissues(),
+        tissues: Tissues = WU2004,
         options: ModelOptions = ModelOptions(),
     ):
         if not indenters:
@@ -414,6 +395,30 @@ class FingertipProblem:
         if self.mesh.comm.rank != 0:
             return np.zeros((0, 2))
         return np.concatenate(gathered)
+
+    def state_arrays(self) -> dict[str, np.ndarray]:
+        """The arrays that define the state (for a checkpoint)."""
+        arrays = {"u": self.u.x.array, "u_n": self.u_n.x.array}
+        if self.p is not None:
+            arrays["p"] = self.p.x.array
+        if self.qlv is not None:
+            for i, h in enumerate(self.qlv.h):
+                arrays[f"qlv_h{i}"] = h.x.array
+            arrays["qlv_S_e_n"] = self.qlv.S_e_n.x.array
+        return arrays
+
+    def region_energies(self) -> dict:
+        """Cell tag -> strain energy density of that region (for the SED output)."""
+        from .materials import strain_energy_density
+
+        t, tags = self.tissues, self.fmesh.names
+        return {tags["skin"]: strain_energy_density(t.skin, self.F),
+                tags["subcutaneous"]: strain_energy_density(t.subcutaneous.solid, self.F),
+                tags["bone"]: strain_energy_density(t.bone, self.F),
+                tags["nail"]: strain_energy_density(t.nail, self.F)}
+
+    def pulp_nodes(self) -> tuple[np.ndarray, np.ndarray]:
+        return self._pulp_nodes()
 
     def _pulp_nodes(self) -> tuple[np.ndarray, np.ndarray]:
         """Reference and current positions of this rank's owned displacement nodes on the pulp."""

@@ -20,14 +20,14 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-import numpy as np
-
-import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
 import gmsh
+import numpy as np
 import ufl
 from dolfinx import fem, io
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
+
+import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
 
 from .geometry import Section
 

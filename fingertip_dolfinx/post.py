@@ -1,4 +1,4 @@
-"""Post-processing: derived fields, point sampling that is exact in parallel, result files.
+"""Post-processing: derived fields and point sampling that is exact in parallel.
 
 Derived fields (logarithmic strain, principal log strains, strain energy density) are
 interpolated into discontinuous P1 spaces by expressions compiled once; curves are sampled
@@ -8,27 +8,12 @@ parallel runs write the same rows.
 
 from __future__ import annotations
 
-import csv
-import json
-import math
-from collections.abc import Sequence
-from pathlib import Path
-
 import numpy as np
 import ufl
 from dolfinx import fem, geometry
 from dolfinx import mesh as dmesh
-from mpi4py import MPI
 
 from .kinematics import hencky_strain, principal_log_strains
-
-#: The columns of the result files (stable names: other tools read them).
-HISTORY_COLUMNS = ("time_s", "indenter_displacement_mm", "force_N_per_mm", "newton_iterations",
-                   "dt_s", "reaction_N_per_mm", "max_penetration_mm", "min_J", "cuts",
-                   "wall_time_s")
-SURFACE_COLUMNS = ("x_mm", "time_s", "deflection_mm")
-DEPTH_COLUMNS = ("x_mm", "depth_mm", "time_s", "u1_mm", "u2_mm", "e11", "e22", "e12", "e_max",
-                 "e_min", "sed_MPa", "p_MPa")
 
 
 class PointSampler:
@@ -115,65 +100,129 @@ def depth_curve(outer, depth: float, half_width: float, n: int) -> tuple[np.ndar
     return x, np.column_stack([x, y]) - depth * normal
 
 
-class CsvLog:
-    """A CSV file written row by row on rank 0 (flushed, so a crash loses nothing)."""
+class Profiles:
+    """The pulp surface's deflection and the depth profiles of one run, at output times.
 
-    def __init__(self, path: Path, columns: Sequence[str], comm: MPI.Comm, resume_after=None):
-        self.comm, self.columns, self.path = comm, tuple(columns), path
-        self._file = None
-        if comm.rank != 0:
-            return
-        rows = []
-        if resume_after is not None and path.exists():
-            # Keep the rows up to the checkpoint; later ones are recomputed.
-            with path.open() as f:
-                rows = [r for r in csv.DictReader(f) if float(r["time_s"]) <= resume_after + 1e-12]
-        self._file = path.open("w", newline="")
-        self._writer = csv.DictWriter(self._file, fieldnames=self.columns)
-        self._writer.writeheader()
-        for r in rows:
-            self._writer.writerow(r)
-        self._file.flush()
+    `problem` is the run's FingertipProblem, `derived` its DerivedFields, `outer` the section's
+    outer ellipse, `outputs` the scene's Outputs. Rows are returned on rank 0 (empty elsewhere).
+    """
 
-    def write(self, rows: Sequence[dict]) -> None:
-        if self._file is None:
-            return
-        for row in rows:
-            self._writer.writerow({k: _fmt(row.get(k)) for k in self.columns})
-        self._file.flush()
+    def __init__(self, problem, derived: DerivedFields, outer, outputs):
+        self.problem, self.derived, self.outputs = problem, derived, outputs
+        self.comm = problem.mesh.comm
+        self.curves = []
+        for d in outputs.depths:
+            x0, points = depth_curve(outer, d, outputs.profile_half_width, outputs.profile_points)
+            sub = PointSampler(problem.submesh, points) if problem.p is not None else None
+            self.curves.append((d, x0, PointSampler(problem.mesh, points), sub))
 
-    def close(self) -> None:
-        if self._file is not None:
-            self._file.close()
+    def surface_rows(self, t: float) -> list[dict]:
+        """Vertical displacement of the pulp nodes (the nail centre is held: deflection)."""
+        X, x = self.problem.pulp_nodes()
+        keep = np.abs(X[:, 0]) <= self.outputs.profile_half_width
+        gathered = self.comm.gather((X[keep, 0], (x - X)[keep, 1]), root=0)
+        if self.comm.rank != 0:
+            return []
+        xs = np.concatenate([g[0] for g in gathered])
+        ys = np.concatenate([g[1] for g in gathered])
+        xs, unique = np.unique(np.round(xs, 12), return_index=True)
+        return [{"x_mm": a, "time_s": t, "deflection_mm": b} for a, b in zip(xs, ys[unique])]
 
-
-def _fmt(value):
-    if value is None or (isinstance(value, float) and math.isnan(value)):
-        return ""
-    if isinstance(value, float | np.floating):
-        return f"{value:.12g}"
-    return value
-
-
-def read_csv(path: Path) -> dict[str, np.ndarray]:
-    """Columns of a result CSV as float arrays (empty cells become NaN)."""
-    with Path(path).open() as f:
-        rows = list(csv.DictReader(f))
-    if not rows:
-        return {}
-    return {k: np.array([float(r[k]) if r[k] != "" else np.nan for r in rows]) for k in rows[0]}
+    def depth_rows(self, t: float) -> list[dict]:
+        """Displacement, log strains, SED and pore pressure along each depth curve."""
+        self.derived.update()
+        p, rows = self.problem, []
+        for d, x0, sampler, sub in self.curves:
+            u, e = sampler(p.u), sampler(self.derived.log_strain)
+            pe, w = sampler(self.derived.principal), sampler(self.derived.sed)
+            pp = sub(p.p) if sub is not None else None
+            if self.comm.rank != 0:
+                continue
+            for i, xs in enumerate(x0):
+                rows.append({
+                    "x_mm": xs, "depth_mm": d, "time_s": t, "u1_mm": u[i, 0], "u2_mm": u[i, 1],
+                    "e11": e[i, 0], "e22": e[i, 3], "e12": e[i, 1], "e_max": pe[i, 0],
+                    "e_min": pe[i, 1], "sed_MPa": w[i, 0],
+                    "p_MPa": pp[i, 0] if pp is not None else np.nan})
+        return rows
 
 
-def write_json(path: Path, data: dict, comm: MPI.Comm) -> None:
-    if comm.rank == 0:
-        tmp = path.with_suffix(".json.tmp")
-        tmp.write_text(json.dumps(data, indent=2, default=_jsonable) + "\n")
-        tmp.replace(path)  # atomic: readers never see half a file
+class FieldArrays:
+    """The state's fields as plain arrays, cell by cell, gathered on rank 0.
+
+    `__call__()` returns (rank 0; None elsewhere): each owned cell's corners in the reference
+    configuration `X` (cells, corners, 2), the displacement there `u`, the cell's region tag
+    `region`, and the derived fields at the corners (discontinuous P1, so exact): `sed` (MPa),
+    `log_strain` (cells, corners, 4: e11, e12, e21, e22), `principal` (e_max, e_min); with a
+    pore pressure, the subcutaneous submesh's corners `X_p`, their displacement `u_p` and `p`.
+    """
+
+    def __init__(self, problem, derived: DerivedFields):
+        self.problem, self.derived = problem, derived
+        msh = problem.mesh
+        self.u1 = fem.Function(fem.functionspace(msh, ("Lagrange", 1, (2,))))
+        self.nodes = _owned_cell_nodes(msh)
+        self.region = _cell_regions(problem.fmesh.cell_tags, len(self.nodes))
+        if problem.p is not None:
+            self.sub_nodes = _owned_cell_nodes(problem.submesh)
+
+    def __call__(self) -> dict[str, np.ndarray] | None:
+        p, msh = self.problem, self.problem.mesh
+        self.derived.update()
+        self.u1.interpolate(p.u)  # exact at the vertices, where the corners are
+        disp = node_values(self.u1)
+        cells = np.arange(len(self.nodes), dtype=np.int32)
+        local = {"X": msh.geometry.x[self.nodes][..., :2], "u": disp[self.nodes],
+                 "region": self.region,
+                 **{name: _dg_corner_values(f, cells) for name, f in (
+                     ("sed", self.derived.sed), ("log_strain", self.derived.log_strain),
+                     ("principal", self.derived.principal))}}
+        if p.p is not None:
+            sub = self.sub_nodes
+            local["X_p"] = p.submesh.geometry.x[sub][..., :2]
+            local["u_p"] = disp[p.submesh_nodes][sub]
+            local["p"] = node_values(p.p)[sub][..., 0]
+        gathered = msh.comm.gather(local, root=0)
+        if msh.comm.rank != 0:
+            return None
+        return {k: np.concatenate([g[k] for g in gathered]) for k in local}
 
 
-def _jsonable(value):
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, Path):
-        return str(value)
-    raise TypeError(f"not JSON serialisable: {value!r}")
+def _owned_cell_nodes(msh: dmesh.Mesh) -> np.ndarray:
+    """Geometry nodes of the owned cells' corners (cells, corners)."""
+    tdim = msh.topology.dim
+    n = msh.topology.index_map(tdim).size_local
+    corners = len(basix_vertices(msh))
+    return msh.geometry.dofmaps[0][:n, :corners]
+
+
+def _dg_corner_values(f: fem.Function, cells: np.ndarray) -> np.ndarray:
+    """A discontinuous P1 function's values at the corners of `cells` (cells, corners, size):
+    its dofs are the corner values, in the cell's vertex order."""
+    bs = f.function_space.dofmap.index_map_bs
+    dofs = f.function_space.dofmap.list[cells]
+    return f.x.array.reshape(-1, bs)[dofs]
+
+
+def node_values(f: fem.Function) -> np.ndarray:
+    """A P1 function's values at its mesh's geometry nodes, shape (nodes, block size)."""
+    msh, V = f.function_space.mesh, f.function_space
+    bs = V.dofmap.index_map_bs
+    values = np.zeros((msh.geometry.x.shape[0], bs))
+    corners = V.dofmap.list.shape[1]
+    values[msh.geometry.dofmaps[0][:, :corners].ravel()] = (
+        f.x.array.reshape(-1, bs)[V.dofmap.list.ravel()])
+    return values
+
+
+def basix_vertices(msh: dmesh.Mesh) -> np.ndarray:
+    import basix
+
+    return basix.geometry(basix.CellType[msh.topology.cell_name()])
+
+
+def _cell_regions(cell_tags: dmesh.MeshTags, n: int) -> np.ndarray:
+    regions = np.zeros(n, dtype=np.int32)
+    owned = cell_tags.indices < n
+    regions[cell_tags.indices[owned]] = cell_tags.values[owned]
+    return regions

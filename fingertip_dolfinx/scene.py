@@ -1,49 +1,126 @@
-"""Experiments as data: a scene file names the section, the indenters, the protocol, the model
-and the outputs; `run_scene` builds the problem, steps it, and writes results as it goes.
+"""Experiments as data: a scene names the section, the materials, the indenters, the protocol,
+the model options, the step control and the outputs. A scene is data only: `run.py` runs it.
 
-Built-in scene files live in `fingertip_dolfinx/data/scenes/` (`line-load`, `1pt`, `2pt`) or anywhere as TOML. The
-command line only picks a scene and overrides keys (`--set model.subcutaneous=drained`).
+A scene comes from a TOML file (built in: `fingertip_dolfinx/data/scenes/`, `line-load`, `1pt`,
+`2pt`; or any path) with `key=value` overrides (`model.subcutaneous="drained"`,
+`indenters.0.centre_x=1.5`: list entries by index), or from parts in Python:
+`Scene(section=..., indenters=[...], history=...)`. Both are validated the same way.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import json
-import time
 import tomllib
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from .datafiles import builtin_dir, find, read_toml
-from .errors import ConvergenceError, InputError
-from .geometry import load_section
-from .indenters import load_indenter, make_indenter
-from .loading import history_from_dict
+from .errors import InputError
+from .forms import ModelOptions
+from .geometry import Section, load_section
+from .indenters import Indenter, load_indenter, make_indenter
+from .loading import KINDS, LoadHistory, history_from_dict
+from .solver import StepOptions
+from .tissues import DEFAULT_SET, WU2004, Tissues, load_materials
+from .validation import check_keys
 
 #: The built-in scenes (inside the package: `fingertip_dolfinx/data/scenes/`).
 SCENES_DIR = builtin_dir("scenes")
-TABLES = ("name", "description", "section", "spacing", "indenters", "protocol", "model",
-          "steps", "solver", "output")
+TABLES = ("name", "description", "section", "spacing", "indenters", "materials", "protocol",
+          "model", "steps", "solver", "output")
+
+
+@dataclass(frozen=True)
+class Outputs:
+    """What a run writes besides its history: profiles and pictures at `times` (s), along
+    curves at `depths` (mm below the undeformed outer surface) over |x| <= profile_half_width,
+    sampled at `profile_points`; fields for ParaView every `field_every` steps."""
+
+    times: tuple[float, ...] = ()
+    depths: tuple[float, ...] = (0.5, 0.75, 1.0)
+    profile_half_width: float = 6.0
+    profile_points: int = 241
+    field_every: int = 1
+
+    def __post_init__(self):
+        object.__setattr__(self, "times", tuple(float(t) for t in self.times))
+        object.__setattr__(self, "depths", tuple(float(d) for d in self.depths))
+        if any(d <= 0 for d in self.depths):
+            raise InputError("output.depths", f"{self.depths}: depths are positive (mm).")
+        if not (isinstance(self.profile_points, int) and self.profile_points >= 2):
+            raise InputError("output.profile_points", f"got {self.profile_points!r}.",
+                             "use an integer >= 2.")
+        if not (isinstance(self.field_every, int) and self.field_every >= 1):
+            raise InputError("output.field_every", f"got {self.field_every!r}.",
+                             "use an integer >= 1.")
 
 
 @dataclass
 class Scene:
-    """A scene file's content, validated; `data` keeps the (merged) raw tables for the record."""
+    """One experiment: everything a run needs, validated. Defaults: the paper's materials
+    (`wu2004`), the default model and step options, outputs at the protocol's end."""
 
-    name: str
-    data: dict
-    section: object
-    indenters: list
-    history: object
-    model: object
-    steps: object
-    petsc_options: dict
-    output_times: tuple[float, ...]
-    depths: tuple[float, ...]
-    profile_half_width: float
-    profile_points: int
-    field_every: int = 1
-    extra: dict = field(default_factory=dict)
+    section: Section
+    indenters: list[Indenter]
+    history: LoadHistory
+    materials: Tissues = WU2004
+    model: ModelOptions = field(default_factory=ModelOptions)
+    steps: StepOptions = field(default_factory=StepOptions)
+    petsc_options: dict = field(default_factory=dict)
+    outputs: Outputs = field(default_factory=Outputs)
+    name: str = "scene"
+    description: str = ""
+
+    def __post_init__(self):
+        self.indenters = list(self.indenters)
+        if not self.indenters:
+            raise InputError(f"{self.name}: indenters", "no indenter given.",
+                             "add an [[indenters]] table.")
+        if not isinstance(self.history, LoadHistory):
+            raise InputError(f"{self.name}: protocol", f"{self.history!r} is not a protocol.",
+                             "use RampHold, PiecewiseLinear or Sinusoid (loading.py).")
+        if not self.history.deepest > 0:
+            raise InputError(f"{self.name}: protocol", f"the indentation never exceeds "
+                             f"{self.history.deepest:g} mm: the indenters would not press.",
+                             "give a positive depth (mm after first touch).")
+        if not self.outputs.times:
+            self.outputs = dataclasses.replace(self.outputs, times=(self.history.end_time,))
+        self._check_outputs()
+
+    def _check_outputs(self):
+        end, o = self.history.end_time, self.outputs
+        if any(t <= 0 or t > end + 1e-12 for t in o.times):
+            raise InputError(f"{self.name}: output.times",
+                             f"{o.times} must lie in (0, end_time = {end}].")
+        if not 0 < o.profile_half_width < self.section.outer.a:
+            raise InputError(f"{self.name}: output.profile_half_width",
+                             f"{o.profile_half_width} mm must lie in (0, {self.section.outer.a}) "
+                             "(the section's half-width).")
+
+    # The names the run and the studies read.
+    @property
+    def output_times(self) -> tuple[float, ...]:
+        return self.outputs.times
+
+    @property
+    def depths(self) -> tuple[float, ...]:
+        return self.outputs.depths
+
+    @property
+    def profile_half_width(self) -> float:
+        return self.outputs.profile_half_width
+
+    @property
+    def profile_points(self) -> int:
+        return self.outputs.profile_points
+
+    @property
+    def field_every(self) -> int:
+        return self.outputs.field_every
+
+
+# --- reading scene files --------------------------------------------------------------------
 
 
 def scene_path(source: str | Path) -> Path:
@@ -63,132 +140,162 @@ def parse_override(text: str) -> tuple[list[str], object]:
     return key.strip().split("."), value
 
 
-def load_scene(source: str | Path, overrides: list[str] = (), spacing: float | None = None) -> Scene:
-    """Read a scene file, apply `key=value` overrides, and validate everything."""
+def apply_override(data: dict, text: str) -> None:
+    """Set one `key=value` in the scene's tables; list entries are addressed by index
+    (`indenters.0.centre_x=1.5`)."""
+    keys, value = parse_override(text)
+    node = data
+    for depth, k in enumerate(keys):
+        last = depth == len(keys) - 1
+        if isinstance(node, list):
+            if not (k.isdigit() and int(k) < len(node)):
+                raise InputError(f"--set {text}", f"{'.'.join(keys[:depth]) or 'it'} is a list "
+                                 f"of {len(node)}; {k!r} is not an index of it.",
+                                 f"use an index from 0 to {len(node) - 1}.")
+            k = int(k)
+        elif not isinstance(node, dict):
+            raise InputError(f"--set {text}", f"{'.'.join(keys[:depth])!r} is a value, not a "
+                             "table.", "check the key.")
+        if last:
+            node[k] = value
+        else:
+            node = node.setdefault(k, {}) if isinstance(node, dict) else node[k]
+
+
+def overrides_as_text(overrides: Mapping | Sequence[str]) -> list[str]:
+    """`key=value` strings from a nested mapping ({"model": {"tissue": "continuum"}}), so that
+    Python callers can pass tables; strings pass through."""
+    if not isinstance(overrides, Mapping):
+        return list(overrides)
+
+    def flatten(prefix: str, node: Mapping):
+        for key, value in node.items():
+            if isinstance(value, Mapping):
+                yield from flatten(f"{prefix}{key}.", value)
+            else:
+                yield f"{prefix}{key}={toml_value(value)}"
+
+    return list(flatten("", overrides))
+
+
+def toml_value(value) -> str:
+    """A Python value written as a TOML value."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    return repr(float(value)) if isinstance(value, float) else repr(value)
+
+
+def load_scene(source: str | Path, overrides: Mapping | Sequence[str] = (),
+               spacing: float | None = None) -> Scene:
+    """Read a scene file (built-in name or path), apply overrides (`key=value` strings or a
+    nested mapping of tables), and validate everything."""
     path = scene_path(source)
     data = read_toml(path)
-    for text in overrides:
-        keys, value = parse_override(text)
-        node = data
-        for k in keys[:-1]:
-            node = node.setdefault(k, {})
-            if not isinstance(node, dict):
-                raise InputError(f"--set {text}", f"{k!r} is not a table.")
-        node[keys[-1]] = value
+    for text in overrides_as_text(overrides):
+        apply_override(data, text)
     if spacing is not None:
         data["spacing"] = spacing
     return scene_from_dict(data, where=str(path))
 
 
 def scene_from_dict(data: dict, where: str = "scene") -> Scene:
-    from .forms import ModelOptions
-    from .solver import StepOptions
-
-    unknown = sorted(set(data) - set(TABLES))
-    if unknown:
-        raise InputError(f"{where}: {', '.join(unknown)}", "unknown key(s) of a scene.",
-                         f"a scene has: {', '.join(TABLES)}.")
+    """A scene from the tables of a scene file."""
+    check_keys(where, data, TABLES, what="table")
     section_data = dict(data.get("section", {}))
     section = load_section(section_data.pop("file", "male-index"), overrides=section_data)
+    indenters = _indenters(data, where)
+    return Scene(
+        name=str(data.get("name", Path(where).stem)),
+        description=str(data.get("description", "")),
+        section=section,
+        indenters=indenters,
+        history=history_from_dict(data.get("protocol", {}), where=f"{where}: protocol"),
+        materials=_materials(data.get("materials", {}), f"{where}: materials"),
+        model=_options(ModelOptions, data.get("model", {}), f"{where}: model", ("extra",)),
+        steps=_options(StepOptions, data.get("steps", {}), f"{where}: steps"),
+        petsc_options=dict(data.get("solver", {})),
+        outputs=_options(Outputs, data.get("output", {}), f"{where}: output"),
+    )
 
+
+def _indenters(data: dict, where: str) -> list[Indenter]:
     indenters = []
     for i, table in enumerate(data.get("indenters", [])):
         table = dict(table)
         base = table.pop("file", None)
         if base is not None:
-            base_data = dataclasses.asdict(load_indenter(base)) | {"shape": load_indenter(base).shape}
-            table = base_data | table
+            builtin = load_indenter(base)
+            table = dataclasses.asdict(builtin) | {"shape": builtin.shape} | table
         indenters.append(make_indenter(table, where=f"{where}: indenters[{i}]"))
-    if not indenters:
-        raise InputError(f"{where}: indenters", "no indenter given.", "add an [[indenters]] table.")
     if "spacing" in data:
-        spacing = float(data["spacing"])
-        if spacing <= 0:
-            raise InputError(f"{where}: spacing", f"must be positive, got {spacing}.")
-        if len(indenters) != 1:
-            raise InputError(f"{where}: spacing", "places a pair: give exactly one indenter.")
-        width = getattr(indenters[0], "width", 0.0)
-        if spacing <= width:
-            raise InputError(f"{where}: spacing", f"{spacing} mm does not separate two "
-                             f"indenters {width} mm wide.", f"use a spacing above {width} mm.")
-        indenters = [dataclasses.replace(indenters[0], centre_x=s * spacing / 2) for s in (-1, 1)]
+        indenters = _pair(indenters, data["spacing"], f"{where}: spacing")
+    return indenters
 
-    history = history_from_dict(data.get("protocol", {}), where=f"{where}: protocol")
-    model_data = dict(data.get("model", {}))
-    allowed = [f.name for f in dataclasses.fields(ModelOptions) if f.name != "extra"]
-    bad = sorted(set(model_data) - set(allowed))
-    if bad:
-        raise InputError(f"{where}: model.{', '.join(bad)}", "unknown model option(s).",
-                         f"[model] takes: {', '.join(allowed)}.")
-    model = ModelOptions(**model_data)
-    steps_data = dict(data.get("steps", {}))
-    allowed = [f.name for f in dataclasses.fields(StepOptions)]
-    bad = sorted(set(steps_data) - set(allowed))
-    if bad:
-        raise InputError(f"{where}: steps.{', '.join(bad)}", "unknown step option(s).",
-                         f"[steps] takes: {', '.join(allowed)}.")
+
+def _pair(indenters: list[Indenter], spacing, where: str) -> list[Indenter]:
+    """Two copies of the one indenter at x = ±spacing/2 (the two-point test)."""
+    spacing = float(spacing)
+    if spacing <= 0:
+        raise InputError(where, f"must be positive, got {spacing}.")
+    if len(indenters) != 1:
+        raise InputError(where, "places a pair: give exactly one indenter.")
+    width = getattr(indenters[0], "width", 0.0)
+    if spacing <= width:
+        raise InputError(where, f"{spacing} mm does not separate two indenters {width} mm "
+                         "wide.", f"use a spacing above {width} mm.")
+    return [dataclasses.replace(indenters[0], centre_x=s * spacing / 2) for s in (-1, 1)]
+
+
+def _materials(data: Mapping, where: str) -> Tissues:
+    """`[materials]`: `set` names a materials file; the other tables override its values."""
+    if not isinstance(data, Mapping):
+        raise InputError(where, f"must be a table, got {data!r}.", "write [materials].")
+    data = dict(data)
+    return load_materials(data.pop("set", DEFAULT_SET), overrides=data)
+
+
+def _options(cls, data: Mapping, where: str, hidden: tuple[str, ...] = ()):
+    """An options dataclass from a table: unknown keys and impossible values named."""
+    check_keys(where, data, [f.name for f in dataclasses.fields(cls) if f.name not in hidden],
+               what="option")
     try:
-        steps = StepOptions(**steps_data)
-    except ValueError as e:
-        raise InputError(f"{where}: steps", str(e)) from None
-
-    out = dict(data.get("output", {}))
-    end = getattr(history, "end_time", None)
-    times = tuple(float(t) for t in out.pop("times", [end]))
-    if any(t <= 0 or (end is not None and t > end + 1e-12) for t in times):
-        raise InputError(f"{where}: output.times", f"{times} must lie in (0, end_time = {end}].")
-    depths = tuple(float(d) for d in out.pop("depths", [0.5, 0.75, 1.0]))
-    if any(d <= 0 for d in depths):
-        raise InputError(f"{where}: output.depths", f"{depths}: depths are positive (mm).")
-    half_width = float(out.pop("profile_half_width", 6.0))
-    if not 0 < half_width < section.outer.a:
-        raise InputError(f"{where}: output.profile_half_width",
-                         f"{half_width} mm must lie in (0, {section.outer.a}) (the half-width).")
-    n_points = int(out.pop("profile_points", 241))
-    field_every = int(out.pop("field_every", 1))
-    if out:
-        raise InputError(f"{where}: output.{', '.join(out)}", "unknown output option(s).",
-                         "[output] takes: times, depths, profile_half_width, profile_points, "
-                         "field_every.")
-    return Scene(
-        name=str(data.get("name", Path(where).stem)),
-        data=data,
-        section=section,
-        indenters=indenters,
-        history=history,
-        model=model,
-        steps=steps,
-        petsc_options=dict(data.get("solver", {})),
-        output_times=times,
-        depths=depths,
-        profile_half_width=half_width,
-        profile_points=n_points,
-        field_every=field_every,
-    )
+        return cls(**data)
+    except InputError as error:
+        raise InputError(f"{where}: {error.where}", error.problem, error.fix) from None
+    except (TypeError, ValueError) as error:
+        raise InputError(where, str(error), "check the values.") from None
 
 
-def run_scene(scene: Scene, out: Path, *, resume: bool = False, progress: bool = True,
-              comm=None) -> dict:
-    """Run `scene`, writing into `out` as it goes; returns the summary (also summary.json)."""
-    from mpi4py import MPI
-
-    from .recorder import Recorder
-
-    comm = comm or MPI.COMM_WORLD
-    recorder = Recorder(scene, Path(out), comm, resume=resume, progress=progress)
-    started = time.perf_counter()
-    try:
-        recorder.run()
-        converged, failure = True, None
-    except ConvergenceError as error:
-        converged, failure = False, str(error)
-    summary = recorder.finish(converged, failure, time.perf_counter() - started)
-    if failure is not None:
-        raise ConvergenceError(failure)
-    return summary
+# --- the record -----------------------------------------------------------------------------
 
 
 def scene_record(scene: Scene) -> dict:
-    """The scene as plain data, for summary.json."""
-    return json.loads(json.dumps(scene.data, default=str))
+    """The scene as plain data, in the scene file's own tables (for summary.json)."""
+    history = scene.history
+    kind = next((k for k, cls in KINDS.items() if isinstance(history, cls)), type(history).__name__)
+    return _plain({
+        "name": scene.name,
+        "description": scene.description,
+        "section": dataclasses.asdict(scene.section),
+        "indenters": [{"shape": i.shape, **dataclasses.asdict(i)} for i in scene.indenters],
+        "materials": scene.materials.record(),
+        "protocol": {"kind": kind, **{f.name: getattr(history, f.name)
+                                      for f in dataclasses.fields(history) if f.init}},
+        "model": {k: v for k, v in dataclasses.asdict(scene.model).items() if k != "extra"},
+        "steps": dataclasses.asdict(scene.steps),
+        "solver": scene.petsc_options,
+        "output": dataclasses.asdict(scene.outputs),
+    })
 
+
+def _plain(value):
+    """Tuples as lists, numbers as numbers: JSON-ready."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    return value

@@ -10,8 +10,8 @@ time, step size and loads are `fem.Constant`s that the problem updates in place.
 from __future__ import annotations
 
 import math
-from collections import deque
 import time as wallclock
+from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Protocol

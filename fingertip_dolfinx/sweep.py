@@ -27,7 +27,7 @@ import numpy as np
 from mpi4py import MPI
 
 from .figures import plot_spacing_profiles
-from .post import read_csv, write_json
+from .outputs import read_csv, write_json
 
 QUANTITIES = ("e11", "e22", "e12", "u2", "sed")
 _COLUMNS = {"e11": "e11", "e22": "e22", "e12": "e12", "u2": "u2_mm", "sed": "sed_MPa"}
@@ -77,7 +77,8 @@ def threshold(spacings: np.ndarray, variations: dict) -> float | None:
 
 
 def run_sweep(scene_name: str, spacings, out: Path, overrides=(), progress=True) -> dict:
-    from .scene import load_scene, run_scene
+    from .run import run_scene
+    from .scene import load_scene
 
     world = MPI.COMM_WORLD
     out = Path(out)

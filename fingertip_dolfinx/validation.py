@@ -18,8 +18,9 @@ def check_keys(where: str, data: Mapping, allowed: Iterable[str], required: Iter
     allowed = list(allowed)
     unknown = sorted(set(data) - set(allowed))
     if unknown:
+        table = where.rsplit(": ", 1)[-1]
         raise InputError(f"{where}.{', '.join(unknown)}", f"unknown {what}(s).",
-                         f"{where} takes: {', '.join(allowed)} (check the spelling).")
+                         f"{table} takes: {', '.join(allowed)} (check the spelling).")
     missing = [k for k in required if k not in data]
     if missing:
         raise InputError(where, f"missing {what}(s) {', '.join(missing)}.",

@@ -3,9 +3,9 @@
 from pathlib import Path
 
 import pytest
+from mpi4py import MPI
 
 import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel before dolfinx is imported)
-from mpi4py import MPI
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -12,7 +12,14 @@ from scipy.spatial import cKDTree
 
 from fingertip_dolfinx.errors import InputError
 from fingertip_dolfinx.indenters import (
-    BUILTIN_DIR, Bar, Cylinder, Plate, Wedge, load_indenter, make_indenter, penetration,
+    BUILTIN_DIR,
+    Bar,
+    Cylinder,
+    Plate,
+    Wedge,
+    load_indenter,
+    make_indenter,
+    penetration,
 )
 
 WEDGE = Wedge(tip_radius=0.025, base=1.2, height=3.0, centre_x=0.3)

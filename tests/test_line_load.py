@@ -18,8 +18,9 @@ from fingertip_dolfinx.geometry import load_section
 from fingertip_dolfinx.indenters import load_indenter
 from fingertip_dolfinx.loading import RampHold
 from fingertip_dolfinx.mesh import build_mesh
-from fingertip_dolfinx.post import read_csv
-from fingertip_dolfinx.scene import load_scene, run_scene
+from fingertip_dolfinx.outputs import read_csv
+from fingertip_dolfinx.run import run_scene
+from fingertip_dolfinx.scene import load_scene
 
 #: Coarse away from the load, 20 µm elements (< the 25 µm tip radius) within 0.25 mm of the tip.
 RESOLVED = dict(min_size=0.1, max_size=0.8, bone_size=1.5, refine_half_width=1.5,

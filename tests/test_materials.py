@@ -3,6 +3,7 @@
 References in this file are written independently of the package (numpy, principal axes).
 """
 
+import dolfinx.fem.petsc  # noqa: F401
 import numpy as np
 import pytest
 import ufl
@@ -10,7 +11,6 @@ from dolfinx import fem, mesh
 from mpi4py import MPI
 from scipy.optimize import brentq
 
-import dolfinx.fem.petsc  # noqa: F401
 from fingertip_dolfinx import materials as mat
 from fingertip_dolfinx.errors import InputError
 from fingertip_dolfinx.kinematics import deformation_gradient

@@ -10,7 +10,12 @@ from mpi4py import MPI
 
 from fingertip_dolfinx.geometry import Section
 from fingertip_dolfinx.mesh import (
-    CELL_TAGS, FACET_TAGS, build_mesh, read_xdmf, region_areas, write_xdmf,
+    CELL_TAGS,
+    FACET_TAGS,
+    build_mesh,
+    read_xdmf,
+    region_areas,
+    write_xdmf,
 )
 
 SIZES = (0.8, 0.4, 0.2)

@@ -1,5 +1,6 @@
 """Biphasic tissue: Holmes–Mow permeability, compaction guard, drained equilibrium."""
 
+import dolfinx.fem.petsc  # noqa: F401
 import numpy as np
 import pytest
 import ufl
@@ -7,7 +8,6 @@ from basix.ufl import element, mixed_element
 from dolfinx import fem, mesh
 from mpi4py import MPI
 
-import dolfinx.fem.petsc  # noqa: F401
 from fingertip_dolfinx import materials as mat
 from fingertip_dolfinx import poroelasticity as poro
 from fingertip_dolfinx.errors import CompactionError

@@ -9,9 +9,10 @@ import pytest
 from mpi4py import MPI
 
 from fingertip_dolfinx.errors import InputError
-from fingertip_dolfinx.post import DEPTH_COLUMNS, HISTORY_COLUMNS, SURFACE_COLUMNS, read_csv
-from fingertip_dolfinx.recorder import Recorder
-from fingertip_dolfinx.scene import load_scene, run_scene
+from fingertip_dolfinx.outputs import DEPTH_COLUMNS, HISTORY_COLUMNS, SURFACE_COLUMNS, read_csv
+from fingertip_dolfinx.run import Run as Recorder
+from fingertip_dolfinx.run import run_scene
+from fingertip_dolfinx.scene import load_scene
 from fingertip_dolfinx.solver import DEFAULT_PETSC_OPTIONS
 
 COARSE = ["section.mesh.min_size=0.2", "section.mesh.max_size=1.0", "section.mesh.bone_size=2.0",

@@ -4,7 +4,6 @@ No Docker engine runs in CI, so the image is checked by what can be checked with
 hadolint's rules, and that the image runs the same recipe that CI exercises on every run.
 """
 
-import os
 import re
 import shutil
 import subprocess

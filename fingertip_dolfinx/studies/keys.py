@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..post import read_csv
+from ..outputs import read_csv
 
 KEYS = ("peak_force", "final_force", "deflection_1mm", "deflection_2mm", "deflection_3mm",
         "peak_e_max_0.75mm", "peak_sed_0.75mm")

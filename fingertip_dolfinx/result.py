@@ -1,0 +1,103 @@
+"""The results of a run as arrays: what `run_scene` returns and `load_result(DIR)` reads back.
+
+A `Result` reads the run's own files (summary.json, history.csv, surface_profile.csv,
+depth_profiles.csv, fields_t<t>s.npz), so a finished, failed or resumed run, or one made on
+another machine, is read the same way; nothing needs CSV parsing by hand.
+"""
+
+from __future__ import annotations
+
+import json
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+from .outputs import read_csv
+
+
+class Result:
+    """A run's results in `out`.
+
+    - `summary`: summary.json as a dict (scene, materials, model, mesh, dofs, steps, ...);
+    - `history`: per accepted step, columns as arrays (`time_s`, `force_N_per_mm`, ...);
+    - `surface`, `depth`: the profiles at the output times, columns as arrays;
+    - `fields(t)`: the fields at output time t as arrays (see `post.FieldArrays`);
+    - shortcuts `time`, `force`, `surface_profile(t)`, `depth_profile(quantity, depth, t)`.
+    """
+
+    def __init__(self, out: str | Path):
+        self.out = Path(out)
+        if not (self.out / "history.csv").exists():
+            raise InputError(str(self.out), "holds no run (no history.csv).",
+                             "give the --out directory of a run.")
+
+    def __repr__(self) -> str:
+        s = self.summary
+        return (f"Result({str(self.out)!r}: {s.get('scene')}, {s.get('time_steps')} steps, "
+                f"peak force {s.get('peak_force_N_per_mm')} N/mm, converged {s.get('converged')})")
+
+    @cached_property
+    def summary(self) -> dict:
+        return json.loads((self.out / "summary.json").read_text())
+
+    @cached_property
+    def history(self) -> dict[str, np.ndarray]:
+        return read_csv(self.out / "history.csv")
+
+    @cached_property
+    def surface(self) -> dict[str, np.ndarray]:
+        return _read_if_there(self.out / "surface_profile.csv")
+
+    @cached_property
+    def depth(self) -> dict[str, np.ndarray]:
+        return _read_if_there(self.out / "depth_profiles.csv")
+
+    @property
+    def time(self) -> np.ndarray:
+        return self.history["time_s"]
+
+    @property
+    def force(self) -> np.ndarray:
+        """Indenter force per unit thickness (N/mm) at every accepted step."""
+        return self.history["force_N_per_mm"]
+
+    @property
+    def output_times(self) -> list[float]:
+        return sorted(float(t) for t in np.unique(self.depth.get("time_s", [])))
+
+    def surface_profile(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """(x, deflection) of the pulp surface at output time t (mm)."""
+        rows = np.isclose(self.surface["time_s"], t)
+        return self.surface["x_mm"][rows], self.surface["deflection_mm"][rows]
+
+    def depth_profile(self, quantity: str, depth: float, t: float) -> tuple[np.ndarray, ...]:
+        """(x, values) of a depth_profiles.csv column (`e11`, `sed_MPa`, ...) along the curve
+        `depth` mm below the surface at output time t."""
+        if quantity not in self.depth:
+            raise InputError(f"quantity {quantity!r}", "is not a column of depth_profiles.csv.",
+                             f"use one of {', '.join(self.depth)}.")
+        rows = np.isclose(self.depth["time_s"], t) & np.isclose(self.depth["depth_mm"], depth)
+        if not rows.any():
+            raise InputError(f"depth {depth} mm, t = {t} s", "was not an output of this run.",
+                             f"output times {self.output_times}.")
+        return self.depth["x_mm"][rows], self.depth[quantity][rows]
+
+    def fields(self, t: float) -> dict[str, np.ndarray]:
+        """The fields at output time t, cell by cell (X, u, region, sed, log_strain, ...)."""
+        path = self.out / f"fields_t{t:g}s.npz"
+        if not path.exists():
+            raise InputError(f"fields at t = {t:g} s", f"were not written ({path}).",
+                             f"output times of this run: {self.output_times}.")
+        with np.load(path) as data:
+            return {k: data[k] for k in data.files}
+
+
+def load_result(out: str | Path) -> Result:
+    """The results of the run written into `out`."""
+    return Result(out)
+
+
+def _read_if_there(path: Path) -> dict[str, np.ndarray]:
+    return read_csv(path) if path.exists() else {}

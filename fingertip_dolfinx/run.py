@@ -1,0 +1,284 @@
+"""One run of a scene: build the mesh and the problem, step it, write everything as it goes.
+
+Per accepted step: a row of history.csv, the fields for ParaView (VTX, every `field_every`
+steps and at output times) and a checkpoint (one .npz per rank) from which `--resume`
+continues. At output times: the pulp-surface deflection, the depth profiles, the fields as
+arrays (`fields_t<t>s.npz`) and their pictures. At the end (or at a failure): summary.json and
+the figures. `run_scene` returns a `Result` (result.py) that holds all of it as arrays.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import platform
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+from dolfinx import io
+from mpi4py import MPI
+
+from . import __version__
+from .errors import ConvergenceError, InputError
+from .figures import plot_depth_profiles, plot_force_history, plot_surface_profiles
+from .forms import FingertipProblem
+from .mesh import build_mesh, write_xdmf
+from .outputs import (
+    DEPTH_COLUMNS,
+    HISTORY_COLUMNS,
+    SURFACE_COLUMNS,
+    Checkpoint,
+    CsvLog,
+    prepare_directory,
+    read_csv,
+    write_json,
+)
+from .pictures import field_pictures
+from .post import DerivedFields, FieldArrays, Profiles
+from .result import Result
+from .scene import Scene, scene_record
+from .solver import TimeStepper
+
+
+class NoContactWarning(UserWarning):
+    """A run whose indenters never pressed on the skin (zero force throughout)."""
+
+
+def run(scene: Scene, out: str | Path, *, resume: bool = False, progress: bool = True,
+        comm: MPI.Comm | None = None) -> Result:
+    """Run `scene`, writing into `out` as it goes, and return its results as arrays.
+
+    A failed step (after all cuts) raises `ConvergenceError` once everything up to the last
+    good step is written (summary.json says `"converged": false` and why).
+    """
+    run_scene(scene, out, resume=resume, progress=progress, comm=comm)
+    return Result(Path(out))
+
+
+def run_scene(scene: Scene, out: str | Path, *, resume: bool = False, progress: bool = True,
+              comm: MPI.Comm | None = None) -> dict:
+    """`run`, returning the summary (summary.json's content) instead of a Result."""
+    comm = comm or MPI.COMM_WORLD
+    job = Run(scene, Path(out), comm, resume=resume, progress=progress)
+    started = time.perf_counter()
+    try:
+        job.run()
+        converged, failure = True, None
+    except ConvergenceError as error:
+        converged, failure = False, str(error)
+    summary = job.finish(converged, failure, time.perf_counter() - started)
+    if failure is not None:
+        raise ConvergenceError(failure)
+    return summary
+
+
+class Run:
+    """Build, step, resume: one scene run into the directory `out`."""
+
+    def __init__(self, scene: Scene, out: Path, comm: MPI.Comm, *, resume: bool,
+                 progress: bool):
+        self.scene, self.comm, self.progress = scene, comm, progress
+        self.out = prepare_directory(out, comm)
+        self.fm = build_mesh(scene.section, comm)
+        if not resume:
+            write_xdmf(self.fm, self.out / "mesh.xdmf")
+        self.problem = FingertipProblem(self.fm, scene.indenters, scene.history,
+                                        scene.materials, scene.model)
+        check_reach(self.problem, scene)
+        self.checkpoint = Checkpoint(self.out, comm)
+        self.start_time, self.steps_before, self.previous = 0.0, 0, None
+        steps = scene.steps
+        if resume:
+            steps = self._resume()
+        self.stepper = TimeStepper(self.problem, steps, scene.petsc_options)
+        self.dofs = sum(f.function_space.dofmap.index_map.size_global
+                        * f.function_space.dofmap.index_map_bs for f in self.problem.unknowns)
+        after = self.start_time if resume else None
+        self.history = CsvLog(self.out / "history.csv", HISTORY_COLUMNS, comm, after)
+        self.surface = CsvLog(self.out / "surface_profile.csv", SURFACE_COLUMNS, comm, after)
+        self.depth = CsvLog(self.out / "depth_profiles.csv", DEPTH_COLUMNS, comm, after)
+        self.derived = DerivedFields(self.problem.u, self.fm.cell_tags,
+                                     self.problem.region_energies())
+        self.profiles = Profiles(self.problem, self.derived, scene.section.outer, scene.outputs)
+        self.arrays = FieldArrays(self.problem, self.derived)
+        self.writers = self._field_writers(resume)
+        self._last_state = (self.start_time, [f.x.array.copy() for f in self.problem.unknowns])
+        self.step_count = self.steps_before
+        self._bar = None
+
+    # --- set-up ----------------------------------------------------------------------------
+    def _resume(self):
+        """Load the checkpoint; returns the step options that continue with its step size."""
+        p = self.problem
+        state = self.checkpoint.load(p.state_arrays(), len(p.unknowns))
+        for f in p.unknowns:
+            f.x.scatter_forward()
+        p.mark_accepted()
+        p.set_time(state.time)
+        self.start_time, self.steps_before, self.previous = state.time, state.steps, state.previous
+        steps = self.scene.steps
+        return dataclasses.replace(steps, dt_initial=min(max(state.dt, steps.dt_min),
+                                                         steps.dt_max))
+
+    def _field_writers(self, resume: bool) -> list[io.VTXWriter]:
+        p = self.problem
+        suffix = f"-from-{self.start_time:g}s" if resume else ""
+        fields = [("displacement", p.u), ("log_strain", self.derived.log_strain),
+                  ("strain_energy_density", self.derived.sed)]
+        if p.p is not None:
+            fields.append(("pore_pressure", p.p))
+        return [io.VTXWriter(self.comm, self.out / f"{name}{suffix}.bp", [f], engine="BP4")
+                for name, f in fields]
+
+    # --- stepping --------------------------------------------------------------------------
+    def run(self) -> None:
+        scene = self.scene
+        end = scene.history.end_time
+        if self.start_time >= end - 1e-12:
+            return
+        from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+        columns = (TextColumn("{task.description}"), BarColumn(),
+                   TextColumn("t = {task.completed:.3g} / {task.total:g} s"),
+                   TimeElapsedColumn(), TextColumn("{task.fields[status]}"))
+        show = self.progress and self.comm.rank == 0
+        with Progress(*columns, disable=not show, transient=False) as bar:
+            self._bar = (bar, bar.add_task(scene.name, total=end, completed=self.start_time,
+                                           status=""))
+            self.stepper.run(scene.history, end, start_time=self.start_time,
+                             breakpoints=scene.output_times, on_step=self.on_step,
+                             previous=self.previous)
+
+    def on_step(self, report) -> None:
+        """Write what the accepted step produced (its state is the converged one)."""
+        self.step_count += 1
+        d = report.diagnostics
+        self.history.write([{
+            "time_s": report.time, "indenter_displacement_mm": report.load,
+            "force_N_per_mm": d["force_N_per_mm"], "newton_iterations": report.newton_iterations,
+            "dt_s": report.dt, "reaction_N_per_mm": d["reaction_N_per_mm"],
+            "max_penetration_mm": d["max_penetration_mm"], "min_J": d["min_J"],
+            "cuts": report.cuts, "wall_time_s": report.wall_time_s}])
+        at_output = any(abs(report.time - t) < 1e-9 for t in self.scene.output_times)
+        if at_output or self.step_count % self.scene.field_every == 0:
+            self.derived.update()
+            for writer in self.writers:
+                writer.write(report.time)
+        if at_output:
+            self._write_output_time(report.time)
+        self._save_checkpoint(report)
+        self._show(report)
+
+    def _write_output_time(self, t: float) -> None:
+        self.surface.write(self.profiles.surface_rows(t))
+        self.depth.write(self.profiles.depth_rows(t))
+        arrays = self.arrays()
+        if self.comm.rank == 0:
+            np.savez_compressed(self.out / f"fields_t{t:g}s.npz", time=t, **arrays)
+            field_pictures(arrays, self.out, t, self.scene, self.problem)
+
+    def _save_checkpoint(self, report) -> None:
+        self.checkpoint.save(report.time, report.next_dt, self.step_count,
+                             self.problem.state_arrays(), self._last_state)
+        self._last_state = (report.time, [f.x.array.copy() for f in self.problem.unknowns])
+
+    def _show(self, report) -> None:
+        if self._bar is None:
+            return
+        bar, task = self._bar
+        d = report.diagnostics
+        bar.update(task, completed=report.time, status=(
+            f"F = {d['force_N_per_mm']:.4g} N/mm, {report.newton_iterations} its, "
+            f"Δt = {report.dt:.3g} s, pen. {1e3 * d['max_penetration_mm']:.2g} µm"))
+
+    # --- the end ---------------------------------------------------------------------------
+    def finish(self, converged: bool, failure: str | None, wall: float) -> dict:
+        """Close every file, write summary.json and draw the figures; returns the summary."""
+        for log in (self.history, self.surface, self.depth):
+            log.close()
+        for writer in self.writers:
+            writer.close()
+        self.stepper.close()
+        self.comm.barrier()
+        summary = None
+        if self.comm.rank == 0:
+            summary = self._summary(converged, failure, wall)
+            _figures(self.out, self.scene.name)
+        summary = self.comm.bcast(summary, root=0)
+        write_json(self.out / "summary.json", summary, self.comm)
+        if converged and summary["peak_force_N_per_mm"] is not None and not (
+                summary["peak_force_N_per_mm"] > 0):
+            warnings.warn(f"{self.scene.name}: the indenters never pressed on the skin (peak "
+                          f"force {summary['peak_force_N_per_mm']:g} N/mm).", NoContactWarning,
+                          stacklevel=2)
+        return summary
+
+    def _summary(self, converged: bool, failure: str | None, wall: float) -> dict:
+        import dolfinx
+
+        h = read_csv(self.out / "history.csv")
+        times = h.get("time_s", np.zeros(0))
+        force = h.get("force_N_per_mm", np.zeros(0))
+        forces_at = {f"{t:g}": (float(np.interp(t, times, force))
+                                if len(times) and t <= times[-1] + 1e-9 else None)
+                     for t in self.scene.output_times}
+        r = self.fm.report
+        record = scene_record(self.scene)
+        return {
+            "scene": self.scene.name,
+            "scene_data": record,
+            "materials": record["materials"],
+            "model": record["model"],
+            "versions": {"fingertip_dolfinx": __version__, "dolfinx": dolfinx.__version__,
+                         "python": platform.python_version()},
+            "mpi_ranks": self.comm.size,
+            "mesh": {"cells": r.num_cells, "cell_type": r.cell_type, "min_edge_mm": r.min_edge,
+                     "max_edge_mm": r.max_edge, "min_quality": r.min_quality},
+            "dofs": self.dofs,
+            "time_steps": len(times),
+            "newton_iterations": int(np.nansum(h.get("newton_iterations", [0]))),
+            "wall_time_s": wall,
+            "converged": converged,
+            "failure": failure,
+            "end_time_s": float(times[-1]) if len(times) else 0.0,
+            "peak_force_N_per_mm": float(np.max(force)) if len(force) else None,
+            "max_penetration_mm": float(np.max(h["max_penetration_mm"])) if len(times) else None,
+            "force_at_output_times_N_per_mm": forces_at,
+            "written": time.strftime("%Y-%m-%dT%H:%M:%S"),
+        }
+
+
+def check_reach(problem, scene: Scene) -> None:
+    """Every indenter must touch the skin before the protocol's deepest indentation.
+
+    The indenters move together; the first touch sets the zero of the indentation. An
+    indenter placed off the pulp (or far beside a sharper one) may never reach the surface:
+    that run would end with a force from the others only, or none, and say nothing.
+    """
+    X, _ = problem.pulp_nodes()
+    points = np.concatenate(problem.mesh.comm.allgather(X))
+    y_deepest = problem.y_touch + scene.history.deepest
+    for i, indenter in enumerate(scene.indenters):
+        clearance = float(np.min(indenter.signed_distance_np(points, y_deepest)[0]))
+        if clearance > 0:
+            raise InputError(
+                f"{scene.name}: indenters[{i}] ({indenter.shape} at x = {indenter.centre_x:g} mm)",
+                f"never reaches the skin: at the deepest indentation ({scene.history.deepest:g} "
+                f"mm) it is still {clearance:.3g} mm away from the pulp surface.",
+                "move it under the pulp (|x| well inside the section's half-width "
+                f"{scene.section.outer.a:g} mm) or indent deeper.")
+
+
+def _figures(out: Path, name: str) -> None:
+    """The curves of the run, from its own CSV files (rank 0)."""
+    h = read_csv(out / "history.csv")
+    if h:
+        plot_force_history(h, out / "force_history.png", title=name)
+    s = read_csv(out / "surface_profile.csv")
+    if s:
+        plot_surface_profiles(s, out / "surface_profile.png", title=name)
+    d = read_csv(out / "depth_profiles.csv")
+    if d:
+        for t in np.unique(d["time_s"]):
+            plot_depth_profiles(d, out / f"depth_profiles_t{t:g}s.png", t, title=name)
