@@ -19,7 +19,7 @@ from petsc4py import PETSc
 
 import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
 from fingertip_dolfinx.outputs import read_csv
-from fingertip_dolfinx.run import run_scene
+from fingertip_dolfinx.runner import run_scene
 from fingertip_dolfinx.scene import load_scene
 
 EVENTS = {"residual": "SNESFunctionEval", "jacobian": "SNESJacobianEval",

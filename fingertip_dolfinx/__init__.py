@@ -1,8 +1,32 @@
 """fingertip-dolfinx: finite-strain biomechanics of touch in FEniCSx.
 
-The chain of modules follows the physics, each depending only on those before it:
-geometry -> mesh -> kinematics -> materials -> contact -> forms -> solver -> scene -> post.
+A plane-strain fingertip (skin, subcutaneous tissue, bone, nail) pressed by rigid indenters,
+after Wu et al. (2004). The modules follow the physics, each depending only on those before it:
+geometry -> mesh -> materials -> tissues -> model -> problem -> solver -> scene -> run ->
+outputs / figures -> studies.
+
+The Python API, in the order a study uses it::
+
+    import fingertip_dolfinx as ft
+
+    scene = ft.load_scene("line-load", {"materials": {"subcutaneous": {"permeability":
+                                                                       {"k0": 1e-2}}}})
+    result = ft.run(scene, "results/k0-1e-2")
+    result.time, result.force                      # the history, as arrays
+    x, sed = result.depth_profile("sed_MPa", depth=0.75, t=1.0)
+
+or from parts, without a scene file::
+
+    scene = ft.Scene(section=ft.load_section("male-index"),
+                     indenters=[ft.Bar(width=1.0)],
+                     history=ft.RampHold(depth=1.0, ramp_time=1.0, end_time=1.0),
+                     materials=ft.load_materials("wu2004", {"bone": {"model": "rigid"}}))
+
+The names below are imported on first use, so that `import fingertip_dolfinx` (and the
+`fingertip --help` command) stays fast.
 """
+
+from importlib import import_module
 
 try:  # The PyPI wheel's PETSc must be set up before dolfinx or petsc4py is imported.
     import dolfinx_solver  # noqa: F401
@@ -10,3 +34,40 @@ except ImportError:  # DOLFINx from conda or the official images needs no set-up
     pass
 
 __version__ = "0.1.0"
+
+#: Public name -> the module that defines it.
+_API = {
+    # scenes: experiments as data, and running them
+    "Scene": "scene", "Outputs": "scene", "load_scene": "scene",
+    "run": "runner", "run_scene": "runner",
+    "Result": "result", "load_result": "result",
+    # materials as data
+    "Tissues": "tissues", "Rigid": "tissues", "load_materials": "tissues", "WU2004": "tissues",
+    "Hyperfoam": "materials", "Prony": "materials", "HolmesMow": "materials",
+    "ConstantPermeability": "materials", "Biphasic": "materials", "LinearElastic": "materials",
+    # geometry, mesh, indenters, protocols
+    "Section": "geometry", "MeshOptions": "geometry", "load_section": "geometry",
+    "build_mesh": "mesh",
+    "Wedge": "indenters", "Bar": "indenters", "Cylinder": "indenters", "Plate": "indenters",
+    "load_indenter": "indenters",
+    "RampHold": "loading", "PiecewiseLinear": "loading", "Sinusoid": "loading",
+    # the model, the problem and the solver, for those who build their own runs
+    "ModelOptions": "forms", "FingertipProblem": "forms",
+    "StepOptions": "solver", "TimeStepper": "solver",
+    # errors
+    "FingertipError": "errors", "InputError": "errors", "ConvergenceError": "errors",
+    "CompactionError": "errors",
+}
+__all__ = sorted(_API)
+
+
+def __getattr__(name: str):
+    if name not in _API:
+        raise AttributeError(f"module 'fingertip_dolfinx' has no attribute {name!r}")
+    value = getattr(import_module(f".{_API[name]}", __name__), name)
+    globals()[name] = value  # later look-ups skip this function
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))

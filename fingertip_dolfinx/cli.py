@@ -27,7 +27,8 @@ def _add_mesh(subparsers) -> None:
     )
     p.add_argument(
         "--section", default="male-index", metavar="NAME_OR_TOML",
-        help="built-in section name (fingertip_dolfinx/data/sections/) or a TOML file (default: %(default)s)",
+        help="built-in section name (in the package's data/sections/) or a TOML file "
+        "(default: %(default)s)",
     )
     p.add_argument(
         "--min-size", type=float, metavar="H",
@@ -64,7 +65,7 @@ def _add_run(subparsers) -> None:
         "Results are written step by step; --resume continues an interrupted run.",
     )
     p.add_argument("scene", metavar="SCENE",
-                   help="built-in scene (line-load, 1pt, 2pt; in fingertip_dolfinx/data/scenes/) or a scene TOML file")
+                   help="built-in scene (line-load, 1pt, 2pt) or a scene TOML file")
     p.add_argument("--spacing", type=float, metavar="D",
                    help="centre spacing (mm) of the two bars of a 2pt scene")
     p.add_argument("--resume", action="store_true",
@@ -169,7 +170,7 @@ def _scene_overrides(args) -> list[str]:
 
 
 def _run_scene(args) -> int:
-    from .run import run_scene
+    from .runner import run_scene
     from .scene import load_scene
 
     overrides = _scene_overrides(args)

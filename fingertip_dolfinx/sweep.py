@@ -77,7 +77,7 @@ def threshold(spacings: np.ndarray, variations: dict) -> float | None:
 
 
 def run_sweep(scene_name: str, spacings, out: Path, overrides=(), progress=True) -> dict:
-    from .run import run_scene
+    from .runner import run_scene
     from .scene import load_scene
 
     world = MPI.COMM_WORLD

@@ -19,7 +19,7 @@ from fingertip_dolfinx.indenters import load_indenter
 from fingertip_dolfinx.loading import RampHold
 from fingertip_dolfinx.mesh import build_mesh
 from fingertip_dolfinx.outputs import read_csv
-from fingertip_dolfinx.run import run_scene
+from fingertip_dolfinx.runner import run_scene
 from fingertip_dolfinx.scene import load_scene
 
 #: Coarse away from the load, 20 µm elements (< the 25 µm tip radius) within 0.25 mm of the tip.

@@ -10,8 +10,8 @@ from mpi4py import MPI
 
 from fingertip_dolfinx.errors import InputError
 from fingertip_dolfinx.outputs import DEPTH_COLUMNS, HISTORY_COLUMNS, SURFACE_COLUMNS, read_csv
-from fingertip_dolfinx.run import Run as Recorder
-from fingertip_dolfinx.run import run_scene
+from fingertip_dolfinx.runner import Run as Recorder
+from fingertip_dolfinx.runner import run_scene
 from fingertip_dolfinx.scene import load_scene
 from fingertip_dolfinx.solver import DEFAULT_PETSC_OPTIONS
 

@@ -212,7 +212,7 @@ def _memory_peak(method: str) -> float:
 
 def _run_one(scene_name, settings, out_dir: Path, progress: bool, comm) -> dict:
     """One run: the key outputs, wall time, memory; a failed run is a row with its reason."""
-    from ..run import run_scene
+    from ..runner import run_scene
     from ..scene import load_scene
 
     method, before = _memory_mark()

@@ -42,7 +42,7 @@ def _slug(name: str) -> str:
 
 def run_fidelity_study(scene_name: str, out: Path, overrides=(), progress: bool = True) -> list:
     """Run the ladder for `scene_name` into out/<rung>/; write fidelity.csv, .md and a chart."""
-    from ..run import run_scene
+    from ..runner import run_scene
     from ..scene import load_scene
 
     comm = MPI.COMM_WORLD
