@@ -1,6 +1,7 @@
 """Material laws: closed-form homogeneous states, the tangent at u = 0, Newton's rate, inputs.
 
-References in this file are written independently of the package (numpy, principal axes).
+References in this file are written independently of the material code (numpy, principal axes;
+the Prony ramp integral from the verification problems, `studies.problems`).
 """
 
 import dolfinx.fem.petsc  # noqa: F401
@@ -14,6 +15,7 @@ from scipy.optimize import brentq
 from fingertip_dolfinx import materials as mat
 from fingertip_dolfinx.errors import InputError
 from fingertip_dolfinx.kinematics import deformation_gradient
+from fingertip_dolfinx.studies.problems import prony_ramp_integral
 
 CELL = np.array([0], dtype=np.int32)
 SKIN = mat.SKIN
@@ -188,12 +190,8 @@ def test_prony_relaxation_and_model_md_numbers():
     assert p.relaxation(0.0) == pytest.approx(1.0)
     assert p.relaxation(1e6) == pytest.approx(0.60)
     # MODEL.md §4: Prony terms alone on a stress ramped linearly over 1 s.
-    def ramp_response(t, T=1.0):
-        def integral(t0, t1):  # ∫ g(t − s) ds over [t0, t1]
-            return p.g_inf * (t1 - t0) + sum(
-                g * tau * (np.exp(-(t - t1) / tau) - np.exp(-(t - t0) / tau))
-                for g, tau in zip(p.g, p.tau))
-        return integral(0.0, min(t, T))
+    def ramp_response(t, T=1.0):  # ∫ g(t − s) ds over [0, min(t, T)]
+        return prony_ramp_integral(p, t, T)
     ratios = [ramp_response(t) / ramp_response(1.0) for t in (2, 5, 10, 20, 100)]
     assert np.allclose(ratios, [0.93, 0.81, 0.72, 0.66, 0.63], atol=0.006)
 

@@ -13,6 +13,7 @@ from mpi4py import MPI
 
 from fingertip_dolfinx import materials as mat
 from fingertip_dolfinx.kinematics import deformation_gradient
+from fingertip_dolfinx.studies.problems import prony_ramp_integral
 from fingertip_dolfinx.viscoelasticity import QuasiLinearViscoelasticity
 
 PRONY = mat.SKIN_PRONY
@@ -22,10 +23,8 @@ DEGREE = 2
 
 
 def ramp_integral(t):
-    """∫_0^min(t,T) g(t − s) ds with g = g∞ + Σ g_i exp(−t/τ_i)."""
-    t1 = min(t, T_RAMP)
-    return PRONY.g_inf * t1 + sum(g * tau * (np.exp(-(t - t1) / tau) - np.exp(-t / tau))
-                                  for g, tau in zip(PRONY.g, PRONY.tau))
+    """∫_0^min(t,T) g(t − s) ds with g = g∞ + Σ g_i exp(−t/τ_i): the exact answer."""
+    return prony_ramp_integral(PRONY, t, T_RAMP)
 
 
 @pytest.fixture(scope="module")

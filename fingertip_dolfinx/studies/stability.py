@@ -21,6 +21,7 @@ then its measures); a failure is recorded with its reason, never hidden.
 5. `compaction_and_drucker`: a column driven towards J = φ0 (what the solver reports) and an
    unstable hyperfoam set (drucker_check / check_state messages).
 
+The block, Terzaghi's column and the Hertz problem are `problems`' (shared with the tests).
 Serial: every mesh lives on MPI.COMM_SELF; under mpiexec rank 0 computes and writes.
 """
 
@@ -36,18 +37,23 @@ import dolfinx.fem.petsc  # noqa: F401  (registers the PETSc assemblers)
 import numpy as np
 import ufl
 from dolfinx import fem, mesh
-from dolfinx.fem.petsc import NonlinearProblem
 from mpi4py import MPI
 
 from .. import materials as mat
-from ..contact import NitscheContact, Obstacle, p_wave_modulus
 from ..errors import CompactionError, ConvergenceError, FingertipError, MaterialInstabilityError
-from ..indenters import Cylinder
 from ..kinematics import deformation_gradient, eigen_sum
 from ..loading import PiecewiseLinear
-from ..poroelasticity import mass_residual, total_first_piola
-from ..solver import _SNES_REASONS, DEFAULT_PETSC_OPTIONS, StepOptions, TimeStepper
+from ..solver import _SNES_REASONS, StepOptions, TimeStepper
 from ..stability import check_state, drucker_check
+from .problems import (
+    ConfinedBlock,
+    Hertz,
+    HertzBlock,
+    Terzaghi,
+    confined_modulus,
+    contact_edge,
+    newton_problem,
+)
 
 TIGHT = {"snes_rtol": 1e-10, "snes_atol": 1e-16, "snes_max_it": 25}
 
@@ -64,126 +70,7 @@ def _reason(code: int) -> str:
     return _SNES_REASONS.get(code, str(code))
 
 
-# ------------------------------------------------------------------------------------------
-# a biphasic block: confined at the sides and bottom, top loaded (traction or displacement)
-
-
-class _Block:
-    """A Steppable biphasic block [0, W] × [0, H] on rollers (sides: u_x = 0, bottom: u_y = 0).
-
-    Top: a compressive traction `load(t)` (MPa) on x < load_width, or (top_displacement) a
-    prescribed downward displacement `load(t)` (mm) of the whole top. The top is drained
-    (p = 0) if `drained_top`, else every boundary is impermeable. Displacement degree
-    `degree_u`, pressure degree 1 (P2/P1 = Taylor–Hood, P1/P1 = equal order).
-    """
-
-    def __init__(self, nx, ny, tissue, load, *, degree_u=2, width=1.0, H=1.0, load_width=None,
-                 drained_top=False, top_displacement=False, diagonal="right",
-                 comm=MPI.COMM_SELF):
-        self.msh = mesh.create_rectangle(comm, [[0.0, 0.0], [width, H]], [nx, ny],
-                                         diagonal=getattr(mesh.DiagonalType, diagonal))
-        msh = self.msh
-        self.W, self.H, self.load, self.tissue = width, H, load, tissue
-        self.load_width = width if load_width is None else load_width
-        self.top_displacement = top_displacement
-        V = fem.functionspace(msh, ("Lagrange", degree_u, (2,)))
-        Q = fem.functionspace(msh, ("Lagrange", 1))
-        self.u, self.u_n, self.p = fem.Function(V), fem.Function(V), fem.Function(Q)
-        v, q = ufl.TestFunction(V), ufl.TestFunction(Q)
-        self.dt = fem.Constant(msh, 1.0)
-        self.value = fem.Constant(msh, 0.0)
-        dx = ufl.dx(metadata={"quadrature_degree": 4})
-        top = mesh.locate_entities_boundary(msh, 1, lambda x: np.isclose(x[1], H))
-        mid = mesh.compute_midpoints(msh, 1, top)
-        loaded = top[mid[:, 0] < self.load_width + 1e-12]
-        tags = mesh.meshtags(msh, 1, loaded, np.full(len(loaded), 1, dtype=np.int32))
-        self.ds = ufl.Measure("ds", domain=msh, subdomain_data=tags)
-        P = total_first_piola(self.u, self.p, tissue)
-        R_u = ufl.inner(P, ufl.grad(v)) * dx
-        if not top_displacement:
-            R_u += self.value * v[1] * self.ds(1)
-        R_p = mass_residual(self.u, self.p, self.u_n, q, self.dt, tissue, dx)
-        self.residuals = [R_u, R_p]
-        sides = mesh.locate_entities_boundary(
-            msh, 1, lambda x: np.isclose(x[0], 0.0) | np.isclose(x[0], width))
-        bottom = mesh.locate_entities_boundary(msh, 1, lambda x: np.isclose(x[1], 0.0))
-        Vx, Vy = V.sub(0), V.sub(1)
-        self.bcs = [fem.dirichletbc(0.0, fem.locate_dofs_topological(Vx, 1, sides), Vx),
-                    fem.dirichletbc(0.0, fem.locate_dofs_topological(Vy, 1, bottom), Vy)]
-        if top_displacement:
-            self.bcs.append(fem.dirichletbc(self.value, fem.locate_dofs_topological(Vy, 1, top),
-                                            Vy))
-        if drained_top:
-            self.bcs.append(fem.dirichletbc(0.0, fem.locate_dofs_topological(Q, 1, top), Q))
-        self.unknowns = [self.u, self.p]
-        self.entity_maps = None
-        self._last = [f.x.array.copy() for f in self.unknowns]
-        F = deformation_gradient(self.u)
-        pts = np.array([[1 / 3, 1 / 3], [0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
-        self._J = fem.Expression(ufl.det(F), pts)
-        self._settle = fem.form(-self.u[1] * self.ds(1))
-
-    # Steppable ------------------------------------------------------------------------------
-    def set_time(self, t):
-        self.value.value = -self.load(t) if self.top_displacement else self.load(t)
-
-    def accept(self):
-        self.u_n.x.array[:] = self.u.x.array
-        self._last = [f.x.array.copy() for f in self.unknowns]
-
-    def restore(self):
-        for f, saved in zip(self.unknowns, self._last):
-            f.x.array[:] = saved
-
-    def min_jacobian(self) -> tuple[float, np.ndarray]:
-        cells = np.arange(self.msh.topology.index_map(2).size_local, dtype=np.int32)
-        J = self._J.eval(self.msh, cells).reshape(len(cells), -1)
-        with np.errstate(invalid="ignore"):
-            worst = int(np.nanargmin(J.min(axis=1))) if np.isfinite(J).any() else 0
-        centre = self.msh.geometry.x[self.msh.geometry.dofmaps[0][worst]].mean(axis=0)
-        return float(np.min(J)), centre
-
-    def inadmissible(self):
-        J_min, where = self.min_jacobian()
-        if not np.isfinite(J_min) or J_min <= 0:
-            return f"inverted elements (J = {J_min:.3g})"
-        try:  # the same margin as forms.FingertipProblem
-            mat.check_compaction(J_min, f"block cell near ({where[0]:.3f}, {where[1]:.3f}) mm",
-                                 self.tissue.phi0, margin=0.02)
-        except CompactionError as e:
-            return str(e)
-        return None
-
-    def diagnostics(self):
-        return {"settlement": self.settlement(), "J_min": self.min_jacobian()[0]}
-
-    # outputs --------------------------------------------------------------------------------
-    def settlement(self) -> float:
-        """Mean downward displacement of the loaded part of the top (mm)."""
-        return fem.assemble_scalar(self._settle) / self.load_width
-
-    def pressure_nodes(self) -> tuple[np.ndarray, np.ndarray]:
-        Q = self.p.function_space
-        return Q.tabulate_dof_coordinates()[:, :2], self.p.x.array.copy()
-
-    def checkerboard(self) -> tuple[np.ndarray, np.ndarray]:
-        """Per pressure node: p minus the mean of its neighbours (nodes sharing a cell), and
-        the largest jump to a neighbour. A smooth field gives O(h² |∇²p|); a checkerboard
-        gives the oscillation's amplitude."""
-        Q = self.p.function_space
-        dofs = Q.dofmap.list
-        n = len(self.p.x.array)
-        nbrs = [set() for _ in range(n)]
-        for cell in dofs:
-            for a in cell:
-                nbrs[a].update(int(b) for b in cell if b != a)
-        p = self.p.x.array
-        dev = np.array([p[i] - np.mean([p[j] for j in nbrs[i]]) for i in range(n)])
-        jump = np.array([max(abs(p[i] - p[j]) for j in nbrs[i]) for i in range(n)])
-        return dev, jump
-
-
-def _one_step(block: _Block, dt: float, prefix: str, petsc=None) -> tuple[bool, str, int]:
+def _one_step(block: ConfinedBlock, dt: float, prefix: str, petsc=None) -> tuple[bool, str, int]:
     """One backward-Euler step of size dt from rest; (converged, reason, Newton iterations)."""
     stepper = TimeStepper(block, StepOptions(dt_initial=dt, dt_min=dt, dt_max=dt, max_cuts=0,
                                              extrapolate=False),
@@ -199,6 +86,21 @@ def _one_step(block: _Block, dt: float, prefix: str, petsc=None) -> tuple[bool, 
 # case 1
 
 
+def _checkerboard(p: fem.Function) -> tuple[np.ndarray, np.ndarray]:
+    """Per node of the P1 pressure p (serial): p minus the mean of its neighbours (nodes
+    sharing a cell), and the largest jump to a neighbour. A smooth field gives O(h² |∇²p|);
+    a checkerboard gives the oscillation's amplitude."""
+    n = len(p.x.array)
+    nbrs = [set() for _ in range(n)]
+    for cell in p.function_space.dofmap.list:
+        for a in cell:
+            nbrs[a].update(int(b) for b in cell if b != a)
+    v = p.x.array
+    dev = np.array([v[i] - np.mean([v[j] for j in nbrs[i]]) for i in range(n)])
+    jump = np.array([max(abs(v[i] - v[j]) for j in nbrs[i]) for i in range(n)])
+    return dev, jump
+
+
 def p1p1_vs_taylor_hood(coarse: bool = True, profiles: dict | None = None) -> list[dict]:
     """Sudden strip load on a confined, impermeable block of nearly undrained tissue."""
     tissue = mat.SUBCUTANEOUS_BIPHASIC
@@ -207,21 +109,21 @@ def p1p1_vs_taylor_hood(coarse: bool = True, profiles: dict | None = None) -> li
     dt = 1.0  # s; the drainage time over 1 mm is ~3e5 s
     load = lambda t: sigma0  # noqa: E731
     n = 12 if coarse else 24
-    reference = _Block(2 * n, 2 * n, tissue, load, degree_u=2, load_width=0.5)
+    reference = ConfinedBlock(2 * n, 2 * n, load, tissue=tissue, degree_u=2, load_width=0.5)
     ok, why, _ = _one_step(reference, dt, "footing_ref")
     if not ok:
         raise FingertipError(f"undrained reference did not converge: {why}")
     s_ref = reference.settlement()
-    c = tissue.permeability.k0 * (solid.K0 + 4 * solid.mu0 / 3)
+    c = tissue.permeability.k0 * confined_modulus(solid)
     rows = []
     for method, degree in (("Taylor-Hood P2/P1", 2), ("P1/P1", 1)):
-        block = _Block(n, n, tissue, load, degree_u=degree, load_width=0.5)
+        block = ConfinedBlock(n, n, load, tissue=tissue, degree_u=degree, load_width=0.5)
         ok, why, its = _one_step(block, dt, f"footing_p{degree}")
         row = {"case": "1 undrained inf-sup", "method": method, "parameter": "h (mm)",
                "value": 1.0 / n, "converged": ok, "reason": why, "newton_iterations": its,
                "c_dt_over_h2": c * dt * n**2}
         if ok:
-            dev, jump = block.checkerboard()
+            dev, jump = _checkerboard(block.p)
             X, _ = block.pressure_nodes()
             # the footing edge (0.5, 1) is a pressure singularity for every method: a measure
             # of the checkerboard alone leaves out the nodes within 0.25 mm of it
@@ -243,117 +145,30 @@ def p1p1_vs_taylor_hood(coarse: bool = True, profiles: dict | None = None) -> li
 
 
 # ------------------------------------------------------------------------------------------
-# case 2: copy of the Hertz set-up of tests/test_contact.py
-
-E_HZ, NU_HZ, R_HZ, L_HZ = 1.0, 0.3, 1.0, 4.0
-A_TARGET, DEPTH = 0.02, 0.0012
-_BOTTOM, _TOP, _SYMMETRY = 1, 2, 3
-
-
-def _hertz_block(h_contact: float):
-    import gmsh
-    from dolfinx.io.gmsh import model_to_mesh
-
-    gmsh.initialize()
-    gmsh.option.setNumber("General.Terminal", 0)
-    gmsh.model.add("block")
-    occ = gmsh.model.occ
-    occ.addRectangle(0, 0, 0, L_HZ, L_HZ)
-    occ.synchronize()
-    for curve in gmsh.model.getEntities(1):
-        x, y, _ = occ.getCenterOfMass(*curve)
-        tag = (_BOTTOM if y < 1e-9 else _TOP if y > L_HZ - 1e-9
-               else _SYMMETRY if x < 1e-9 else 0)
-        if tag:
-            gmsh.model.addPhysicalGroup(1, [curve[1]], tag)
-    gmsh.model.addPhysicalGroup(2, [1], 1)
-    field = gmsh.model.mesh.field
-    origin = occ.addPoint(0, 0, 0)
-    occ.synchronize()
-    field.add("Distance", 1)
-    field.setNumbers(1, "PointsList", [origin])
-    field.add("Threshold", 2)
-    for name, value in [("InField", 1), ("SizeMin", h_contact), ("SizeMax", L_HZ / 8),
-                        ("DistMin", 2 * A_TARGET), ("DistMax", L_HZ / 2)]:
-        field.setNumber(2, name, value)
-    field.setAsBackgroundMesh(2)
-    for option in ("MeshSizeExtendFromBoundary", "MeshSizeFromPoints", "MeshSizeFromCurvature"):
-        gmsh.option.setNumber(f"Mesh.{option}", 0)
-    gmsh.model.mesh.generate(2)
-    data = model_to_mesh(gmsh.model, MPI.COMM_SELF, 0, gdim=2)
-    gmsh.finalize()
-    return data.mesh, data.facet_tags
-
-
-def _hertz_theory(force: float) -> tuple[float, float]:
-    a = math.sqrt(4 * force * R_HZ * (1 - NU_HZ**2) / (math.pi * E_HZ))
-    return a, 2 * force / (math.pi * a)
+# case 2
 
 
 def nitsche_parameters(coarse: bool = True, thetas=(-1, 0, 1),
                        gammas=(0.1, 1.0, 10.0, 100.0, 1000.0), steps: int = 3) -> list[dict]:
     """Rigid cylinder into an elastic half block (small strain), Nitsche θ and γ0 swept."""
-    domain, facet_tags = _hertz_block(A_TARGET / (2.5 if coarse else 5.0))
-    V = fem.functionspace(domain, ("Lagrange", 2, (2,)))
-    mu, lmbda = E_HZ / (2 * (1 + NU_HZ)), E_HZ * NU_HZ / ((1 + NU_HZ) * (1 - 2 * NU_HZ))
-    M = p_wave_modulus(E_HZ, NU_HZ)
-    fdim = 1
-    top = fem.locate_dofs_topological(V, fdim, facet_tags.find(_TOP))
-    side = fem.locate_dofs_topological(V.sub(0), fdim, facet_tags.find(_SYMMETRY))
-    bcs = [fem.dirichletbc(np.zeros(2), top, V), fem.dirichletbc(0.0, side, V.sub(0))]
-    h_min = min(domain.h(1, facet_tags.find(_BOTTOM)))
+    hertz = Hertz()
+    domain, facet_tags = hertz.mesh(hertz.a_target / (2.5 if coarse else 5.0))
+    h_min = min(domain.h(1, facet_tags.find(Hertz.BOTTOM)))
     rows = []
     for theta in thetas:
-        u, v = fem.Function(V), ufl.TestFunction(V)
-        eps = ufl.sym(ufl.grad(u))
-        P = lmbda * ufl.tr(eps) * ufl.Identity(2) + 2 * mu * eps
-        obstacle = Obstacle.at(domain, Cylinder(radius=R_HZ), y_tip=0.0)
-        gamma_M = fem.Constant(domain, 10.0 * M)  # γ0·M: γ0 changes without recompiling
-        ds = ufl.Measure("ds", domain, subdomain_data=facet_tags)
-        contact = NitscheContact(u, P, ds(_BOTTOM), [obstacle], modulus=gamma_M, theta=theta,
-                                 gamma0=1.0)
-        F = ufl.inner(P, ufl.grad(v)) * ufl.dx + contact.residual(v)
-        options = {**DEFAULT_PETSC_OPTIONS, "snes_rtol": 1e-9, "snes_atol": 1e-13,
-                   "snes_max_it": 50}
-        problem = NonlinearProblem(F, u, bcs=bcs, petsc_options_prefix=_prefix("nitsche"),
-                                   petsc_options=options)
+        gamma_M = fem.Constant(domain, 10.0 * hertz.modulus)  # γ0·M: γ0 changes, no recompiling
+        block = hertz.block(domain, facet_tags, theta=theta, modulus=gamma_M, gamma0=1.0)
+        problem = newton_problem(block.residual, block.u, block.bcs, _prefix("nitsche"),
+                                 snes_rtol=1e-9, snes_atol=1e-13, snes_max_it=50)
         for gamma0 in gammas:
-            gamma_M.value = gamma0 * M
-            u.x.array[:] = 0.0
-            obstacle.y_tip.value = 0.0
-            its, reasons, ok, started = [], [], True, time.perf_counter()
-            for k in range(1, steps + 1):
-                obstacle.y_tip.value = DEPTH * k / steps
-                with np.errstate(all="ignore"):
-                    problem.solve()
-                r = problem.solver.getConvergedReason()
-                its.append(problem.solver.getIterationNumber())
-                reasons.append(_reason(r))
-                if r <= 0 or not np.all(np.isfinite(u.x.array)):
-                    ok = False
-                    break
+            gamma_M.value = gamma0 * hertz.modulus
+            ok, reason, its, wall = _indent(hertz, block, problem, steps)
             row = {"case": "2 Nitsche contact", "method": f"theta={theta:+d}",
-                   "parameter": "gamma0", "value": gamma0, "converged": ok,
-                   "reason": reasons[-1] if not ok else "converged",
+                   "parameter": "gamma0", "value": gamma0, "converged": ok, "reason": reason,
                    "newton_iterations": int(sum(its)), "max_iterations_per_step": max(its),
-                   "gamma_h_over_M": gamma0, "wall_s": time.perf_counter() - started}
+                   "gamma_h_over_M": gamma0, "wall_s": wall}
             if ok:
-                force = 2 * float(contact.forces()[0])
-                X, pc = contact.sample(contact.pressure, points_per_facet=11)
-                _, s = contact.sample(contact.trial_pressure, points_per_facet=11)
-                order = np.argsort(X[:, 0], kind="stable")
-                x, pc, s = X[order, 0], pc[order], s[order]
-                k = np.flatnonzero(s <= 0)
-                edge = (x[k[0] - 1] + (x[k[0]] - x[k[0] - 1]) * s[k[0] - 1]
-                        / (s[k[0] - 1] - s[k[0]])) if len(k) and k[0] > 0 else math.nan
-                a, p0 = _hertz_theory(force) if force > 0 else (math.nan, math.nan)
-                row.update({
-                    "penetration_over_depth": contact.max_penetration() / DEPTH,
-                    "force_N_per_mm": force,
-                    "halfwidth_error": abs(edge / a - 1),
-                    "peak_pressure_error": abs(pc.max() / p0 - 1),
-                    "h_contact": h_min,
-                })
+                row.update(_against_hertz(hertz, block), h_contact=h_min)
             rows.append(row)
     ref = next((r for r in rows if r["method"] == "theta=+0" and r["value"] == 10.0
                 and r["converged"]), None)
@@ -361,6 +176,36 @@ def nitsche_parameters(coarse: bool = True, thetas=(-1, 0, 1),
         if ref is not None and r.get("force_N_per_mm") is not None:
             r["force_vs_theta0_gamma10"] = r["force_N_per_mm"] / ref["force_N_per_mm"] - 1
     return rows
+
+
+def _indent(hertz: Hertz, block: HertzBlock, problem, steps: int):
+    """Indent from rest to the full depth in `steps` steps: (converged, last reason, Newton
+    iterations per step, wall time in s)."""
+    block.u.x.array[:] = 0.0
+    block.obstacle.y_tip.value = 0.0
+    its, started = [], time.perf_counter()
+    for k in range(1, steps + 1):
+        block.obstacle.y_tip.value = hertz.depth * k / steps
+        with np.errstate(all="ignore"):
+            problem.solve()
+        r = problem.solver.getConvergedReason()
+        its.append(problem.solver.getIterationNumber())
+        if r <= 0 or not np.all(np.isfinite(block.u.x.array)):
+            return False, _reason(r), its, time.perf_counter() - started
+    return True, "converged", its, time.perf_counter() - started
+
+
+def _against_hertz(hertz: Hertz, block: HertzBlock) -> dict:
+    """Penetration, force, and the half-width and peak-pressure errors against Hertz theory."""
+    force = block.force()
+    x, pc, s = block.profile()
+    a, p0 = hertz.theory(force) if force > 0 else (math.nan, math.nan)
+    return {
+        "penetration_over_depth": block.contact.max_penetration() / hertz.depth,
+        "force_N_per_mm": force,
+        "halfwidth_error": abs(contact_edge(x, s) / a - 1),
+        "peak_pressure_error": abs(pc.max() / p0 - 1),
+    }
 
 
 # ------------------------------------------------------------------------------------------
@@ -444,31 +289,17 @@ def principal_stretch_tangent(material: mat.Hyperfoam = mat.SUBCUTANEOUS) -> lis
 # case 4
 
 
-def one_step_terzaghi(z, dt, H, c, sigma0):
-    """Exact p after one backward-Euler step of a sudden load σ0 (continuous in space):
-    p − c Δt p'' = σ0, p(H) = 0, p'(0) = 0 ⇒ p = σ0 (1 − cosh(z/ℓ)/cosh(H/ℓ)), ℓ = sqrt(cΔt).
-    Never above σ0 and monotone: any overshoot is the discretisation's."""
-    ell = math.sqrt(c * dt)
-    z = np.asarray(z, dtype=float)
-    ratio = np.exp((z - H) / ell) * (1 + np.exp(-2 * z / ell)) / (1 + np.exp(-2 * H / ell))
-    return sigma0 * (1 - ratio)
-
-
 def poroelastic_time_step(coarse: bool = True, profiles: dict | None = None) -> list[dict]:
     """Terzaghi column drained at the top, one step Δt from rest, Δt over decades."""
-    solid = mat.SUBCUTANEOUS
-    M = solid.K0 + 4 * solid.mu0 / 3
-    c = 1.0  # mm²/s: k = c/M, constant permeability (κ = M_HM = 0)
-    tissue = mat.Biphasic(solid, mat.HolmesMow(k0=c / M, phi0=0.4, kappa=0.0, M=0.0))
-    sigma0 = 1e-5 * M
+    terzaghi = Terzaghi()  # c = 1 mm²/s, k = c/M constant
+    c, sigma0 = terzaghi.c, terzaghi.sigma0
     ny = 16 if coarse else 32
     h = 1.0 / ny
     bound = h**2 / (6 * c)
     dts = (np.logspace(-6, 0, 7) if coarse else np.logspace(-7, 0, 15))
     rows = []
     for method, degree in (("Taylor-Hood P2/P1", 2), ("P1/P1", 1)):
-        block = _Block(1, ny, tissue, lambda t: sigma0, degree_u=degree, width=0.1,
-                       drained_top=True)
+        block = terzaghi.column(ny, degree_u=degree)
         stepper = TimeStepper(block, StepOptions(dt_initial=1.0, dt_min=1e-12, max_cuts=0,
                                                  extrapolate=False), TIGHT,
                               prefix=_prefix(f"terzaghi_p{degree}"))
@@ -485,9 +316,7 @@ def poroelastic_time_step(coarse: bool = True, profiles: dict | None = None) -> 
             X, p = block.pressure_nodes()
             order = np.argsort(X[:, 1], kind="stable")
             z, p = X[order, 1], p[order]
-            exact = one_step_terzaghi(z, dt, 1.0, c, sigma0)
-            ell = math.sqrt(c * dt)
-            s_exact = sigma0 / M * ell * math.tanh(1.0 / ell)
+            exact = terzaghi.one_step_pressure(z, dt)
             rows.append({
                 "case": "4 poroelastic time step", "method": method, "parameter": "dt (s)",
                 "value": float(dt), "converged": ok, "reason": why,
@@ -497,7 +326,8 @@ def poroelastic_time_step(coarse: bool = True, profiles: dict | None = None) -> 
                 "overshoot_vs_exact": float((p.max() - exact.max()) / sigma0),
                 "z_of_p_max": float(z[np.argmax(p)]),
                 "p_error_max": float(np.max(np.abs(p - exact)) / sigma0),
-                "settlement_error_rel": abs(block.settlement() / s_exact - 1),
+                "settlement_error_rel": abs(block.settlement()
+                                            / terzaghi.one_step_settlement(dt) - 1),
             })
             if profiles is not None:
                 profiles[(method, float(dt))] = (z, p / sigma0, exact / sigma0)
@@ -528,13 +358,13 @@ def compaction_and_drucker(coarse: bool = True) -> list[dict]:
         (mat.SUBCUTANEOUS, TIGHT, "subcutaneous, snes_atol 1e-16"),
         (soft, {}, "nu = 0.05 (soft in volume), default SNES tolerances"),
     ):
-        M = solid.K0 + 4 * solid.mu0 / 3
+        M = confined_modulus(solid)
         # c = k M ~ 10 mm²/s: drains within the 1 s squeeze, so J follows it
         tissue = mat.Biphasic(solid, mat.HolmesMow(k0=10.0 / M, phi0=hm.phi0, kappa=hm.kappa,
                                                    M=hm.M))
         history = PiecewiseLinear((0.0, 1.0), (0.0, 0.7))
-        block = _Block(1, 4 if coarse else 8, tissue, history, degree_u=2, width=0.25,
-                       drained_top=True, top_displacement=True)
+        block = ConfinedBlock(1, 4 if coarse else 8, history, tissue=tissue, degree_u=2,
+                              width=0.25, drained_top=True, top_displacement=True)
         stepper = TimeStepper(block, StepOptions(dt_initial=0.1, dt_min=1e-3, dt_max=0.1,
                                                  max_cuts=6), tolerances,
                               prefix=_prefix("compaction"))
