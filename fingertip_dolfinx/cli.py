@@ -85,15 +85,26 @@ def _add_run(subparsers) -> None:
 def _add_sweep(subparsers) -> None:
     p = subparsers.add_parser(
         "sweep",
-        help="run a 2pt scene over bar spacings; normalised variations and the threshold",
-        description="Run the two-point scene for each spacing (into DIR/d<spacing>/), then write "
+        help="run a scene over values of one input (--param), or a 2pt scene over bar "
+        "spacings (--spacings)",
+        description="--param KEY --values V1 V2 ... (or --factors F1 F2 ...: multiples of the "
+        "scene's own value, a number or a list): the scene once per value into DIR/<label>/, "
+        "then DIR/sweep.csv (key outputs per value), DIR/summary.json and DIR/sweep.png. "
+        "--spacings D1 D2 ... (two-point scenes): DIR/d<spacing>/ per spacing, then "
         "DIR/normalized_variation.csv, DIR/summary.json (with threshold_mm and its criterion) "
-        "and DIR/normalized_variation.png. Under mpiexec the spacings run side by side, one "
-        "group of ranks each.",
+        "and DIR/normalized_variation.png. Under mpiexec the runs go side by side, one group "
+        "of ranks each.",
     )
-    p.add_argument("scene", metavar="SCENE", help="a two-point scene (2pt or a TOML file)")
-    p.add_argument("--spacings", type=float, nargs="+", required=True, metavar="D",
-                   help="centre spacings in mm, e.g. 1.5 2 3 4")
+    p.add_argument("scene", metavar="SCENE", help="a built-in scene or a scene TOML file")
+    p.add_argument("--spacings", type=float, nargs="+", metavar="D",
+                   help="centre spacings in mm of a 2pt scene, e.g. 1.5 2 3 4")
+    p.add_argument("--param", metavar="KEY",
+                   help="the scene key to vary, e.g. materials.subcutaneous.permeability.k0 "
+                   "or materials.skin.mu")
+    p.add_argument("--values", nargs="+", metavar="V",
+                   help="values of --param (read as TOML: 1e-2, [0.1, 0.2])")
+    p.add_argument("--factors", type=float, nargs="+", metavar="F",
+                   help="multiply the scene's value of --param by each factor")
     _add_scene_options(p)
     p.set_defaults(handler=_run_sweep)
 
@@ -215,6 +226,12 @@ def _auto_fidelity(args, overrides: list[str]) -> list[str]:
 
 
 def _run_sweep(args) -> int:
+    if args.spacings and args.param:
+        raise InputError("sweep", "--spacings and --param both given.", "give one of them.")
+    if args.param:
+        return _run_parameter_sweep(args)
+    if not args.spacings:
+        raise InputError("sweep", "nothing to sweep over.", "give --param KEY or --spacings.")
     from .sweep import run_sweep
 
     result = run_sweep(args.scene, args.spacings, args.out, _scene_overrides(args),
@@ -225,6 +242,26 @@ def _run_sweep(args) -> int:
         f"{'not bracketed' if threshold is None else f'{threshold:.2f} mm'} "
         f"({result['threshold_criterion']}); results in {args.out}"
     )
+    return 0
+
+
+def _run_parameter_sweep(args) -> int:
+    from .scene import parse_override
+    from .studies.parameters import parameter_sweep
+
+    if (args.values is None) == (args.factors is None):
+        raise InputError(f"--param {args.param}", "needs either --values or --factors.",
+                         "give one of them.")
+    values = None
+    if args.values is not None:
+        values = [parse_override(f"v={text}")[1] for text in args.values]
+    result = parameter_sweep(args.scene, args.param, args.out, values=values,
+                             factors=args.factors, overrides=_scene_overrides(args),
+                             progress=not args.quiet)
+    for row in result["rows"]:
+        _rank0_print(f"{row['label']:>24}: peak force {row['peak_force']:.5g} N/mm, final "
+                     f"{row['final_force']:.5g} N/mm, peak SED {row['peak_sed_0.75mm']:.4g} MPa")
+    _rank0_print(f"sweep over {args.param} written to {args.out}/sweep.csv")
     return 0
 
 

@@ -73,6 +73,22 @@ def run_scene(scene: Scene, out: str | Path, *, resume: bool = False, progress: 
     return summary
 
 
+def run_side_by_side(jobs: list[tuple[Scene, Path]], progress: bool = True) -> None:
+    """Run several scenes, each into its own directory; under `mpiexec -n N` they run side by
+    side, one group of ranks each (N groups at most). Every rank returns when all are done."""
+    world = MPI.COMM_WORLD
+    groups = max(1, min(world.size, len(jobs)))
+    colour = world.rank % groups
+    comm = world.Split(colour, world.rank)
+    try:
+        for i, (scene, out) in enumerate(jobs):
+            if i % groups == colour:
+                run_scene(scene, out, progress=progress and comm.rank == 0, comm=comm)
+    finally:
+        world.barrier()
+        comm.Free()
+
+
 class Run:
     """Build, step, resume: one scene run into the directory `out`."""
 

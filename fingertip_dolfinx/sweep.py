@@ -77,20 +77,13 @@ def threshold(spacings: np.ndarray, variations: dict) -> float | None:
 
 
 def run_sweep(scene_name: str, spacings, out: Path, overrides=(), progress=True) -> dict:
-    from .runner import run_scene
+    from .runner import run_side_by_side
     from .scene import load_scene
 
     world = MPI.COMM_WORLD
     out = Path(out)
-    groups = min(world.size, len(spacings))
-    colour = world.rank % groups
-    comm = world.Split(colour, world.rank)  # one group of ranks per scene, side by side
-    for i, d in enumerate(spacings):
-        if i % groups == colour:
-            scene = load_scene(scene_name, list(overrides), spacing=d)
-            run_scene(scene, out / f"d{d:g}", progress=progress and comm.rank == 0, comm=comm)
-    world.barrier()
-    comm.Free()
+    run_side_by_side([(load_scene(scene_name, list(overrides), spacing=d), out / f"d{d:g}")
+                      for d in spacings], progress=progress)
 
     result = None
     if world.rank == 0:
