@@ -1,5 +1,6 @@
 """Shared fixtures; MPI-aware: every rank runs each test, only rank 0 reports."""
 
+import gc
 from pathlib import Path
 
 import pytest
@@ -34,3 +35,13 @@ def shared_tmp_path(tmp_path_factory, comm):
     """A temporary directory that is the same on every rank (rank 0 creates it)."""
     path = tmp_path_factory.mktemp("shared") if comm.rank == 0 else None
     return Path(comm.bcast(str(path) if path else None, root=0))
+
+
+@pytest.fixture(autouse=True)
+def collectives_in_step(comm):
+    """After each test, free PETSc objects on every rank at the same moment, then wait for all:
+    their destruction is collective (MUMPS, VecScatter), and a rank that collects garbage
+    later than the others would hang the next test under mpiexec."""
+    yield
+    gc.collect()
+    comm.barrier()
