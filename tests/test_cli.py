@@ -82,3 +82,31 @@ def test_run_rejects_bad_scene_input_in_one_line(tmp_path, capsys):
     bad.write_text("[model]\ndisplacement_degree = 1\n")
     assert main(["run", "1pt", "--config", str(bad), "--out", str(tmp_path)]) == 2
     assert "Taylor" in capsys.readouterr().err
+
+
+def test_an_output_directory_that_cannot_be_made_is_one_line(tmp_path, capsys):
+    blocker = tmp_path / "a-file"
+    blocker.write_text("not a directory\n")
+    assert main(["run", "1pt", "--out", str(blocker / "results"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "the output directory cannot be created" in err and "Fix:" in err
+
+
+def test_a_protocol_that_never_presses_is_refused(tmp_path, capsys):
+    assert main(["run", "1pt", "--set", "protocol.depth=0", "--out", str(tmp_path)]) == 2
+    assert "never exceeds 0 mm" in capsys.readouterr().err
+
+
+def test_an_indenter_that_never_reaches_the_skin_is_named(tmp_path, capsys):
+    """A second bar at x = 6.5 mm, where the pulp has curved up by 2.9 mm: a 1 mm
+    indentation from the first touch (under the bar at x = 0) never reaches it."""
+    scene = tmp_path / "two.toml"
+    scene.write_text('[[indenters]]\nfile = "bar"\n[[indenters]]\nfile = "bar"\n'
+                     'centre_x = 6.5\n[protocol]\ndepth = 1.0\nramp_time = 1.0\n'
+                     'end_time = 1.0\n[section.mesh]\nmin_size = 0.5\nmax_size = 1.0\n'
+                     'bone_size = 2.0\n')
+    assert main(["run", str(scene), "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "indenters[1] (bar at x = 6.5 mm)" in err and "never reaches the skin" in err, err
+    assert main(["run", str(scene), "--set", "indenters.1.centre_x=0.5",
+                 "--set", "protocol.depth=0.1", "--out", str(tmp_path / "ok"), "--quiet"]) == 0
