@@ -80,7 +80,7 @@ class Hyperfoam:
     A single Poisson ratio ν for all terms (as in the paper). Individual μ_i may be negative
     (the paper's fits have one); what small-strain stability needs is μ0 = Σμ_i > 0 and
     K0 = Σ 2μ_i(1/3 + β) > 0, which is what is required here. Large-strain stability is the
-    business of `stability.drucker_check`.
+    business of `drucker.drucker_check`.
     """
 
     mu: tuple[float, ...]  # MPa

@@ -47,7 +47,7 @@ from ..kinematics import deformation_gradient, eigen_sum
 from ..loading import PiecewiseLinear
 from ..poroelasticity import mass_residual, total_first_piola
 from ..solver import _SNES_REASONS, DEFAULT_PETSC_OPTIONS, StepOptions, TimeStepper
-from ..stability import check_state, drucker_check
+from ..drucker import check_state, drucker_check
 
 TIGHT = {"snes_rtol": 1e-10, "snes_atol": 1e-16, "snes_max_it": 25}
 

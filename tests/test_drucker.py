@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
+from fingertip_dolfinx import drucker as st
 from fingertip_dolfinx import materials as mat
-from fingertip_dolfinx import stability as st
 from fingertip_dolfinx.errors import InputError, MaterialInstabilityError
 
 #: μ0 = 0.3 > 0 (stable at small strain) but d(λ) = 2(−0.2λ + 0.5λ³) < 0 for λ < sqrt(0.4):
@@ -31,7 +31,7 @@ def test_tangent_is_diag_plus_rank_one():
 
 @pytest.mark.parametrize("material", [mat.SKIN, mat.SUBCUTANEOUS])
 def test_paper_sets_are_drucker_stable_in_plane_strain(material):
-    """Finding (see stability.py): d_a > 0 and v > 0 at every stretch, so the paper's sets
+    """Finding (see drucker.py): d_a > 0 and v > 0 at every stretch, so the paper's sets
     never lose stability on [0.2, 2]²; MODEL.md's 0.40 / 0.45 is not reproduced."""
     result = st.drucker_check(material, plane_strain=True)
     print(result.describe())
