@@ -20,6 +20,7 @@ import ufl
 
 from .errors import CompactionError, InputError
 from .kinematics import eigen_sum, right_cauchy_green
+from .validation import check_keys
 
 # --------------------------------------------------------------------------------------------
 # validation helpers
@@ -52,47 +53,85 @@ def _float(where: str, name: str, value) -> float:
 
 
 def _from_dict(cls, data: Mapping, where: str):
-    """Build `cls` from a TOML table: unknown or missing keys are errors that list the keys."""
-    if not isinstance(data, Mapping):
-        raise InputError(where, f"expected a table of parameters, got {type(data).__name__}.")
-    allowed = [f.name for f in fields(cls) if f.name != "where"]
-    required = [f.name for f in fields(cls) if f.name != "where" and f.default is MISSING]
-    unknown = sorted(set(data) - set(allowed))
-    if unknown:
-        raise InputError(
-            where, f"unknown parameter(s) {unknown} for {cls.__name__}.",
-            f"use only {allowed} (check the spelling).",
-        )
-    missing = [k for k in required if k not in data]
-    if missing:
-        raise InputError(where, f"missing parameter(s) {missing} for {cls.__name__}.")
+    """Build `cls` from a TOML table: unknown or missing keys are errors that list the keys
+    (the package's one key checker); the values are then validated by `cls` itself."""
+    params = [f for f in fields(cls) if f.init and f.name != "where"]
+    check_keys(where, data, [f.name for f in params],
+               required=[f.name for f in params if f.default is MISSING], what="parameter")
     return cls(**dict(data), where=where)
 
 
 # --------------------------------------------------------------------------------------------
 # hyperfoam (compressible Ogden, ABAQUS *HYPERFOAM)
 
+#: Below this |β| (ν within ±0.01) the volume term (J^(−αβ) − 1)/β = (e^x − 1)/β, x = −αβ ln J,
+#: is built as 2 sinh(x/2) e^(x/2)/β (see `_volume_term`). The closed form subtracts two
+#: numbers ≈ 1: absolute error ~eps/|β| (times 2μ/α²), which grows without bound as β → 0;
+#: at |β| ≥ 0.01 it is at most 100 eps, and the paper's β = 2 keeps its expression unchanged.
+BETA_SMALL = 1e-2
+
+
+def _poisson_ratios(where: str, value, n_terms: int) -> float | tuple[float, ...]:
+    """ν as given: one number (every term) or a list with one value per term (ABAQUS's ν_i)."""
+    if isinstance(value, Sequence | np.ndarray) and not isinstance(value, (str, bytes)):
+        nu = _floats(where, "nu", value)
+        if len(nu) != n_terms:
+            raise InputError(where, f"'nu' has {len(nu)} values but 'mu' has {n_terms} terms.",
+                             "give one nu for all terms, or one nu_i per term.")
+        values = nu
+    else:
+        nu = _float(where, "nu", value)
+        values = (nu,)
+    bad = [v for v in values if not -1.0 < v < 0.5]
+    if bad:
+        which = f"{nu} is" if len(values) == 1 else f"{nu}: the value(s) {bad} are"
+        raise InputError(where, f"'nu' = {which} outside (-1, 0.5).",
+                         "use -1 < nu < 0.5 (0.5 would be incompressible).")
+    return nu
+
+
+def _volume_term(detC, alpha: float, beta: float) -> ufl.core.expr.Expr:
+    """(J^(−αβ) − 1)/β, the volumetric part of one hyperfoam term, for a float β.
+
+    J is taken from det C (J^p = det(C)^(p/2), ln J = ln(det C)/2) so W stays a function of C.
+    β = 0 (ν = 0, ABAQUS's default and FEBio's 'Ogden unconstrained'): the limit −α ln J,
+    exactly. 0 < |β| < BETA_SMALL: e^x − 1 = 2 sinh(x/2) e^(x/2) with x = −αβ ln J is exact
+    and has no cancellation (sinh of a small argument is computed to full relative precision),
+    so the term is accurate for any tiny β, and tends to −α ln J. (A truncated series in x
+    would need |x| bounded, i.e. J bounded; this needs nothing.) Otherwise the closed form.
+    The branch is on the float β when the form is built: nothing is decided (or divided by
+    zero) at run time.
+    """
+    if beta == 0.0:
+        return -alpha * (0.5 * ufl.ln(detC))
+    if abs(beta) < BETA_SMALL:
+        half_x = -alpha * beta / 4.0 * ufl.ln(detC)  # x/2 = −αβ ln J/2 = −αβ ln(det C)/4
+        return 2.0 * ufl.sinh(half_x) * ufl.exp(half_x) / beta
+    return (detC ** (-alpha * beta / 2.0) - 1.0) / beta
+
 
 @dataclass(frozen=True)
 class Hyperfoam:
-    """W = Σ_i 2μ_i/α_i² [λ1^α_i + λ2^α_i + λ3^α_i − 3 + (J^(−α_i β) − 1)/β], β = ν/(1−2ν).
+    """W = Σ_i 2μ_i/α_i² [λ1^α_i + λ2^α_i + λ3^α_i − 3 + (J^(−α_i β_i) − 1)/β_i],
+    β_i = ν_i/(1 − 2ν_i), the ABAQUS *HYPERFOAM energy.
 
-    A single Poisson ratio ν for all terms (as in the paper). Individual μ_i may be negative
-    (the paper's fits have one); what small-strain stability needs is μ0 = Σμ_i > 0 and
-    K0 = Σ 2μ_i(1/3 + β) > 0, which is what is required here. Large-strain stability is the
-    business of `stability.drucker_check`.
+    `nu` is one Poisson ratio for every term (the paper; kept as the float given) or one per
+    term (ABAQUS's ν_i; kept as a tuple); `betas` gives β_i per term either way. ν_i = 0 is
+    allowed: the volume term is then its limit −α_i ln J, built exactly (no 0/0).
+    Individual μ_i may be negative (the paper's fits have one); what small-strain stability
+    needs is μ0 = Σμ_i > 0 and K0 = Σ 2μ_i(1/3 + β_i) > 0, which is what is required here.
+    Large-strain stability is the business of `drucker.drucker_check`.
     """
 
     mu: tuple[float, ...]  # MPa
     alpha: tuple[float, ...]
-    nu: float
+    nu: float | tuple[float, ...]
     where: str = field(default="hyperfoam", compare=False, repr=False)
 
     def __post_init__(self):
         w = self.where
         mu = _floats(w, "mu", self.mu)
         alpha = _floats(w, "alpha", self.alpha)
-        nu = _float(w, "nu", self.nu)
         if len(mu) != len(alpha):
             raise InputError(
                 w, f"'mu' has {len(mu)} terms but 'alpha' has {len(alpha)}.",
@@ -101,9 +140,7 @@ class Hyperfoam:
         if any(a == 0.0 for a in alpha):
             raise InputError(w, f"'alpha' = {alpha} contains 0 (W divides by α_i²).",
                              "use nonzero exponents.")
-        if not -1.0 < nu < 0.5:
-            raise InputError(w, f"'nu' = {nu} is outside (-1, 0.5).",
-                             "use -1 < nu < 0.5 (0.5 would be incompressible).")
+        nu = _poisson_ratios(w, self.nu, len(mu))
         object.__setattr__(self, "mu", mu)
         object.__setattr__(self, "alpha", alpha)
         object.__setattr__(self, "nu", nu)
@@ -111,18 +148,36 @@ class Hyperfoam:
             raise InputError(
                 w, f"initial shear modulus mu0 = sum(mu) = {self.mu0:.6g} MPa is not positive: "
                 "the material is unstable at small strain.", "check the signs of 'mu'.")
-        if not self.K0 > 0.0:  # = 2μ0(1 + ν)/(3(1 − 2ν)): implied by the two checks above
+        # One ν: K0 = 2μ0(1 + ν)/(3(1 − 2ν)) > 0 follows from μ0 > 0. Per-term ν_i: it does
+        # not (a negative μ_i with a large β_i can make it negative), so it is checked.
+        if not self.K0 > 0.0:
             raise InputError(
-                w, f"initial bulk modulus K0 = {self.K0:.6g} MPa is not positive.",
-                "check 'mu' and 'nu'.")
+                w, f"initial bulk modulus K0 = sum(2 mu_i (1/3 + beta_i)) = {self.K0:.6g} MPa "
+                "is not positive: the material is unstable in volume at small strain.",
+                "check 'mu' and 'nu' (a large nu_i on a negative mu_i lowers K0).")
 
     @classmethod
     def from_dict(cls, data: Mapping, where: str = "hyperfoam") -> Hyperfoam:
         return _from_dict(cls, data, where)
 
     @property
+    def nus(self) -> tuple[float, ...]:
+        """ν_i, one per term (the single ν repeated if one was given)."""
+        return self.nu if isinstance(self.nu, tuple) else (self.nu,) * len(self.mu)
+
+    @property
+    def betas(self) -> tuple[float, ...]:
+        """β_i = ν_i/(1 − 2ν_i), one per term."""
+        return tuple(n / (1.0 - 2.0 * n) for n in self.nus)
+
+    @property
     def beta(self) -> float:
-        return self.nu / (1.0 - 2.0 * self.nu)
+        """The common β = ν/(1 − 2ν); an error if the terms have different ν_i (use `betas`)."""
+        betas = set(self.betas)
+        if len(betas) != 1:
+            raise InputError(self.where, f"'nu' = {self.nu} differs per term: there is no "
+                             "single beta.", "use the per-term 'betas'.")
+        return betas.pop()
 
     @property
     def mu0(self) -> float:
@@ -131,44 +186,56 @@ class Hyperfoam:
 
     @property
     def K0(self) -> float:
-        """Initial bulk modulus Σ 2μ_i (1/3 + β) (MPa)."""
-        return float(sum(2.0 * m * (1.0 / 3.0 + self.beta) for m in self.mu))
+        """Initial bulk modulus Σ 2μ_i (1/3 + β_i) (MPa)."""
+        return float(sum(2.0 * m * (1.0 / 3.0 + b) for m, b in zip(self.mu, self.betas)))
 
     @property
     def lame_lambda0(self) -> float:
-        """Initial Lamé λ = K0 − 2μ0/3 = 2μ0β (the plane-strain small-strain stiffness)."""
-        return self.K0 - 2.0 * self.mu0 / 3.0
+        """Initial Lamé λ = K0 − 2μ0/3 = Σ 2μ_iβ_i (the plane-strain small-strain stiffness),
+        summed directly: exactly 0 at ν = 0, where K0 − 2μ0/3 would leave round-off."""
+        return float(sum(2.0 * m * b for m, b in zip(self.mu, self.betas)))
+
+    @property
+    def nu0(self) -> float:
+        """Small-strain Poisson ratio (3K0 − 2μ0)/(2(3K0 + μ0)): ν itself if one was given."""
+        if not isinstance(self.nu, tuple):
+            return self.nu
+        return (3 * self.K0 - 2 * self.mu0) / (2 * (3 * self.K0 + self.mu0))
 
     def strain_energy(self, C) -> ufl.core.expr.Expr:
         """W(C) for a 2×2 C (plane strain, λ3 = 1 inside) or a 3×3 C."""
         d = C.ufl_shape[0]
-        b = self.beta
         terms = [(2.0 * m / a**2, a) for m, a in zip(self.mu, self.alpha)]
 
         def stretch_part(c):  # Σ_i k_i λ^α_i with λ^α = c^(α/2): one eigen_sum for all terms
             return sum(k * c ** (a / 2.0) for k, a in terms)
 
         W = eigen_sum(C, stretch_part)
-        # J^(−αβ) = det(C)^(−αβ/2): J from C keeps W a function of C alone.
-        detC = ufl.det(C)
+        detC = ufl.det(C)  # J from det C keeps W a function of C alone
         lam3_alpha = 1.0 if d == 2 else 0.0  # plane strain: λ3^α = 1 (3D: inside eigen_sum)
-        W += sum(k * (lam3_alpha - 3.0 + (detC ** (-a * b / 2.0) - 1.0) / b) for k, a in terms)
+        W += sum(k * (lam3_alpha - 3.0 + _volume_term(detC, a, b))
+                 for (k, a), b in zip(terms, self.betas))
         return W
 
     # ---- numpy closed forms (checks, stability) --------------------------------------------
     def principal_kirchhoff(self, stretches) -> np.ndarray:
-        """τ_a = Σ_i (2μ_i/α_i)(λ_a^α_i − J^(−α_i β)); stretches (..., 3) -> (..., 3), MPa."""
+        """τ_a = Σ_i (2μ_i/α_i)(λ_a^α_i − J^(−α_i β_i)); stretches (..., 3) -> (..., 3), MPa.
+        (β_i = 0: J^0 = 1 exactly.)"""
         lam = np.asarray(stretches, dtype=float)
         J = np.prod(lam, axis=-1)[..., None, None]
-        mu, al = np.asarray(self.mu), np.asarray(self.alpha)
-        return np.sum(2 * mu / al * (lam[..., None] ** al - J ** (-al * self.beta)), axis=-1)
+        mu, al, b = np.asarray(self.mu), np.asarray(self.alpha), np.asarray(self.betas)
+        return np.sum(2 * mu / al * (lam[..., None] ** al - J ** (-al * b)), axis=-1)
 
     def principal_energy(self, stretches) -> np.ndarray:
+        """W from principal stretches (..., 3); the volume term as expm1(−αβ ln J)/β, or
+        −α ln J where β = 0 (both exact to round-off for every β)."""
         lam = np.asarray(stretches, dtype=float)
-        J = np.prod(lam, axis=-1)[..., None]
-        mu, al = np.asarray(self.mu), np.asarray(self.alpha)
+        ln_J = np.log(np.prod(lam, axis=-1))[..., None]
+        mu, al, b = np.asarray(self.mu), np.asarray(self.alpha), np.asarray(self.betas)
         s = np.sum(lam[..., None] ** al, axis=-2)
-        return np.sum(2 * mu / al**2 * (s - 3 + (J ** (-al * self.beta) - 1) / self.beta), -1)
+        b_safe = np.where(b == 0.0, 1.0, b)
+        volume = np.where(b == 0.0, -al * ln_J, np.expm1(-al * b * ln_J) / b_safe)
+        return np.sum(2 * mu / al**2 * (s - 3 + volume), -1)
 
 
 # --------------------------------------------------------------------------------------------

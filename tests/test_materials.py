@@ -1,8 +1,14 @@
 """Material laws: closed-form homogeneous states, the tangent at u = 0, Newton's rate, inputs.
 
-References in this file are written independently of the material code (numpy, principal axes;
-the Prony ramp integral from the verification problems, `studies.problems`).
+References in this file are written independently of the package (numpy, principal axes; the
+Prony ramp integral from the verification problems, `studies.problems`).
+Hyperfoam closed forms, by hand from W = Σ 2μ_i/α_i² [Σ_a λ_a^α_i − 3 + (J^(−α_iβ_i) − 1)/β_i]:
+τ_a = λ_a ∂W/∂λ_a = Σ (2μ_i/α_i)(λ_a^α_i − J^(−α_iβ_i)) (the J-term: ∂/∂ ln λ_a of
+(J^(−αβ) − 1)/β is −α J^(−αβ), at β = 0 of −α ln J it is −α: the same with J^0 = 1), and
+σ_a = τ_a/J.
 """
+
+from decimal import Decimal, localcontext
 
 import dolfinx.fem.petsc  # noqa: F401
 import numpy as np
@@ -19,14 +25,33 @@ from fingertip_dolfinx.studies.problems import prony_ramp_integral
 
 CELL = np.array([0], dtype=np.int32)
 SKIN = mat.SKIN
+#: ν = 0.4 is the paper's; ν = 0 ABAQUS's default (β = 0: the volume term is −α ln J);
+#: per-term ν_i as ABAQUS allows (one term with β = 0, one moderate, one stiff in volume).
+NU_CASES = [0.0, 0.4, (0.0, 0.2, 0.45)]
+NU_IDS = ["nu=0", "nu=0.4", "nu_i=(0,0.2,0.45)"]
+LAMBDAS = np.linspace(0.5, 1.5, 10)  # excludes λ = 1, where every stress is 0
+
+
+def foam(nu):
+    """The skin's μ_i, α_i with another ν (a float for all terms or one per term)."""
+    return mat.Hyperfoam(mu=SKIN.mu, alpha=SKIN.alpha, nu=nu, where=f"skin, nu = {nu}")
+
+
+def betas_np(nu, n_terms):
+    nus = nu if isinstance(nu, tuple) else (nu,) * n_terms
+    return [v / (1 - 2 * v) for v in nus]
 
 
 def tau_np(lam, mu, alpha, nu):
     """Principal Kirchhoff stresses of the hyperfoam, from W by hand (test's own copy)."""
-    b = nu / (1 - 2 * nu)
     J = np.prod(lam)
-    return np.array([sum(2 * m / a * (la**a - J ** (-a * b)) for m, a in zip(mu, alpha))
-                     for la in lam])
+    betas = betas_np(nu, len(mu))
+    return np.array([sum(2 * m / a * (la**a - J ** (-a * b))
+                         for m, a, b in zip(mu, alpha, betas)) for la in lam])
+
+
+def tau_of(material, lam):
+    return tau_np(np.asarray(lam, dtype=float), material.mu, material.alpha, material.nu)
 
 
 def cauchy_np(F, material):
@@ -38,51 +63,269 @@ def cauchy_np(F, material):
     return (n * tau) @ n.T / np.linalg.det(F)
 
 
+def energy_decimal(lam, material, digits=40):
+    """W at principal stretches in 40-digit decimal arithmetic: the closed form itself,
+    (exp(−αβ ln J) − 1)/β, has no cancellation problem at that precision even for β ~ 1e-9
+    (β = 0: the limit −α ln J)."""
+    with localcontext() as ctx:
+        ctx.prec = digits
+        ln_lam = [Decimal(float(x)).ln() for x in lam]
+        ln_J = sum(ln_lam)
+        W = Decimal(0)
+        for m, a, b in zip(material.mu, material.alpha, betas_np(material.nu, len(material.mu))):
+            a, b = Decimal(a), Decimal(b)
+            volume = -a * ln_J if b == 0 else ((-a * b * ln_J).exp() - 1) / b
+            W += 2 * Decimal(m) / a**2 * (sum((a * x).exp() for x in ln_lam) - 3 + volume)
+        return float(W)
+
+
+QUANTITIES = {"sigma": mat.cauchy_stress, "S": mat.second_piola_kirchhoff,
+              "W": mat.strain_energy_density}
+
+
 @pytest.fixture(scope="module")
-def stress_at():
-    """σ(F) for a constant 2×2 F through the package's UFL (energy -> ufl.diff -> σ)."""
-    msh = mesh.create_unit_square(MPI.COMM_SELF, 1, 1)
-    Fc = fem.Constant(msh, np.eye(2))
-    expr = fem.Expression(mat.cauchy_stress(SKIN, Fc), np.array([[1 / 3, 1 / 3]]))
+def evaluate():
+    """evaluate(quantity, material, F): the package's UFL (energy -> ufl.diff -> stresses) at a
+    constant 2×2 (plane strain) or 3×3 F, on a one-cell square or cube. Compiled once each."""
+    meshes = {2: mesh.create_unit_square(MPI.COMM_SELF, 1, 1),
+              3: mesh.create_unit_cube(MPI.COMM_SELF, 1, 1, 1)}
+    points = {2: np.array([[1 / 3, 1 / 3]]), 3: np.array([[0.25, 0.25, 0.25]])}
+    compiled = {}
 
-    def evaluate(F):
+    def run(quantity, material, F):
+        F = np.asarray(F, dtype=float)
+        d = F.shape[0]
+        key = (quantity, material, d)
+        if key not in compiled:
+            Fc = fem.Constant(meshes[d], np.eye(d))
+            compiled[key] = Fc, fem.Expression(QUANTITIES[quantity](material, Fc), points[d])
+        Fc, expr = compiled[key]
         Fc.value[:] = F
-        return expr.eval(msh, CELL).reshape(2, 2)
+        out = expr.eval(meshes[d], CELL)
+        return out.reshape(d, d) if quantity != "W" else float(out.ravel()[0])
 
-    return evaluate
+    return run
 
 
-def test_plane_strain_uniaxial_stress_closed_form(stress_at):
-    """σ22 = 0 fixes λ2 = λ1^(−β/(1+β)); σ11 = τ1/J with the closed-form τ1."""
-    b = SKIN.beta
-    for l1 in np.linspace(0.5, 1.5, 10):  # excludes λ1 = 1, where σ11 = 0
-        l2 = brentq(lambda l2: stress_at(np.diag([l1, l2]))[1, 1], 0.5, 2.5,
+@pytest.fixture(scope="module")
+def stress_at(evaluate):
+    """σ(F) of the skin for a constant 2×2 F."""
+    return lambda F: evaluate("sigma", SKIN, F)
+
+
+# ---- hyperfoam: closed-form homogeneous states --------------------------------------------
+
+#: The package's 3D eigenvalue sum (Cardano's formula) has NaN derivatives at a double
+#: eigenvalue away from C ∝ I (documented in kinematics._eigen_sum_3d), and uniaxial states
+#: have one (λ2 = λ3). The 3D checks split the equal stretches to t e^δ, t e^−δ: J is unchanged
+#: and τ1 depends on λ2, λ3 only through J, so σ11 keeps its uniaxial value exactly; σ22, σ33
+#: are compared with the closed form at the split stretches. Plane strain needs no split.
+SPLIT = 0.01
+#: Round-off: the stresses are sums of terms up to ~10× the result (λ^α and J^(−αβ) of both
+#: signs), evaluated in double precision; the measured worst relative error is printed.
+RTOL = 1e-10
+
+
+def lateral_stretch(material, l1, n_free):
+    """Zero lateral stress: the stretch t of (λ1, t, t) (3D, n_free = 2) or (λ1, t, 1)
+    (plane strain, n_free = 1) with τ2 = 0, by a scalar root find on the test's own τ."""
+    def tau2(t):
+        return tau_of(material, (l1, t, t) if n_free == 2 else (l1, t, 1.0))[1]
+    return brentq(tau2, 0.2, 5.0, xtol=1e-15, rtol=1e-15)
+
+
+@pytest.mark.parametrize("nu", NU_CASES, ids=NU_IDS)
+def test_uniaxial_stress_3d_closed_form(evaluate, nu):
+    """λ1 given, τ2 = τ3 = 0 fixes t; σ11 = τ1/J, J = λ1 t². One ν: t = J^(−β) zeroes every
+    term of τ2, i.e. t = λ1^(−β/(1+2β)) (ν = 0: t = 1)."""
+    m = foam(nu)
+    worst = 0.0
+    for l1 in LAMBDAS:
+        t = lateral_stretch(m, l1, n_free=2)
+        if not isinstance(nu, tuple):
+            b = nu / (1 - 2 * nu)
+            assert t == pytest.approx(l1 ** (-b / (1 + 2 * b)), rel=1e-14, abs=1e-15)
+        s11 = tau_of(m, (l1, t, t))[0] / (l1 * t * t)
+        lam = np.array([l1, t * np.exp(SPLIT), t * np.exp(-SPLIT)])
+        got = evaluate("sigma", m, np.diag(lam))
+        ref = np.diag(tau_of(m, lam) / np.prod(lam))
+        worst = max(worst, abs(got[0, 0] / s11 - 1), np.abs(got - ref).max() / abs(s11))
+    print(f"{m.where}: 3D uniaxial stress, max relative error {worst:.1e}")
+    assert worst < RTOL
+
+
+@pytest.mark.parametrize("nu", NU_CASES, ids=NU_IDS)
+def test_uniaxial_stress_plane_strain_closed_form(evaluate, nu):
+    """λ3 = 1, τ2(λ1, t, 1) = 0 (one ν: t = λ1^(−β/(1+β))); σ11 = τ1/(λ1 t). The root of the
+    package's σ22 must be the closed-form t."""
+    m = foam(nu)
+    worst = 0.0
+    for l1 in LAMBDAS:
+        t = lateral_stretch(m, l1, n_free=1)
+        if not isinstance(nu, tuple):
+            b = nu / (1 - 2 * nu)
+            assert t == pytest.approx(l1 ** (-b / (1 + b)), rel=1e-14, abs=1e-15)
+        t_ufl = brentq(lambda l2, l1=l1: evaluate("sigma", m, np.diag([l1, l2]))[1, 1], 0.2, 5.0,
+                       xtol=1e-15, rtol=1e-15)
+        s11 = tau_of(m, (l1, t, 1.0))[0] / (l1 * t)
+        got = evaluate("sigma", m, np.diag([l1, t]))
+        worst = max(worst, abs(t_ufl / t - 1), abs(got[0, 0] / s11 - 1),
+                    np.abs(got - np.diag([s11, 0.0])).max() / abs(s11))
+    print(f"{m.where}: plane-strain uniaxial stress, max relative error {worst:.1e}")
+    assert worst < RTOL
+
+
+def confined_closed_form(material, lam):
+    """Uniaxial strain F = diag(λ, 1, 1), J = λ, by hand:
+    σ1 = Σ(2μ_i/α_i)(λ^α_i − λ^(−α_iβ_i))/λ, σ2 = σ3 = Σ(2μ_i/α_i)(1 − λ^(−α_iβ_i))/λ."""
+    terms = list(zip(material.mu, material.alpha, betas_np(material.nu, len(material.mu))))
+    s1 = sum(2 * m / a * (lam**a - lam ** (-a * b)) for m, a, b in terms) / lam
+    s2 = sum(2 * m / a * (1.0 - lam ** (-a * b)) for m, a, b in terms) / lam
+    return s1, s2
+
+
+@pytest.mark.parametrize("nu", NU_CASES, ids=NU_IDS)
+def test_confined_compression_closed_form(evaluate, nu):
+    """Uniaxial strain (confined compression and its tension counterpart). At ν = 0 the
+    lateral stress vanishes identically: no lateral stress without lateral strain."""
+    m = foam(nu)
+    worst = 0.0
+    for lam in LAMBDAS:
+        s1, s2 = confined_closed_form(m, lam)
+        if nu == 0.0:
+            assert s2 == 0.0
+        got = evaluate("sigma", m, np.diag([lam, 1.0]))  # plane strain: exactly this state
+        worst = max(worst, np.abs(got - np.diag([s1, s2])).max() / abs(s1))
+        split = np.array([lam, np.exp(SPLIT), np.exp(-SPLIT)])  # J = λ still
+        got = evaluate("sigma", m, np.diag(split))
+        ref = np.diag(tau_of(m, split) / np.prod(split))
+        worst = max(worst, abs(got[0, 0] / s1 - 1), np.abs(got - ref).max() / abs(s1))
+    print(f"{m.where}: confined compression, max relative error {worst:.1e}")
+    assert worst < RTOL
+
+
+def test_nu0_uniaxial_stress_has_no_lateral_contraction(evaluate):
+    """ν = 0: J^(−α·0) = 1, so τ_a = Σ(2μ_i/α_i)(λ_a^α_i − 1) depends on λ_a alone and zero
+    lateral stress means λ2 = 1 for every λ1. The root is unique: the sum's derivative
+    Σ 2μ_i λ2^(α_i − 1) is positive for the skin's μ_i, α_i (checked below)."""
+    m = foam(0.0)
+    t = np.linspace(0.05, 5.0, 4000)
+    assert np.all(sum(2 * mu * t ** (a - 1) for mu, a in zip(m.mu, m.alpha)) > 0)
+    for l1 in LAMBDAS:
+        l2 = brentq(lambda l2, l1=l1: evaluate("sigma", m, np.diag([l1, l2]))[1, 1], 0.2, 5.0,
                     xtol=1e-15, rtol=1e-15)
-        l2_exact = l1 ** (-b / (1 + b))
-        J = l1 * l2_exact
-        s11_exact = sum(2 * m / a * (l1**a - J ** (-a * b))
-                        for m, a in zip(SKIN.mu, SKIN.alpha)) / J
-        s = stress_at(np.diag([l1, l2]))
-        assert abs(l2 / l2_exact - 1) < 1e-8
-        assert abs(s[0, 0] / s11_exact - 1) < 1e-8
-        assert abs(s[0, 1]) < 1e-12 * abs(s[0, 0])
+        assert abs(l2 - 1) < 1e-14
+        # 3D: σ22 = 0 at (λ1, 1, λ3) whatever λ3 (distinct stretches: no double eigenvalue).
+        s = evaluate("sigma", m, np.diag([l1, 1.0, 0.77]))
+        assert abs(s[1, 1]) < 1e-13 * np.abs(s).max()  # round-off of terms ~10× σ
 
 
 @pytest.mark.parametrize("F", [np.diag([0.6, 0.6]), np.diag([1.3, 1.3]),
                                np.array([[1.0, 0.4], [0.0, 1.0]]),
                                np.array([[1.0, 1e-6], [0.0, 1.0]])])
-def test_equibiaxial_and_simple_shear_against_numpy(stress_at, F):
-    got, ref = stress_at(F), cauchy_np(F, SKIN)
-    assert np.abs(got - ref).max() <= 1e-9 * np.abs(ref).max()
+@pytest.mark.parametrize("nu", NU_CASES, ids=NU_IDS)
+def test_equibiaxial_and_simple_shear_against_numpy(evaluate, F, nu):
+    """The tiny shear (γ = 1e-6, σ ~ μ0γ) is a difference of terms ~2μ_i/α_i (1 + α_iβ_i)
+    (stretch and volume parts at J ≈ 1): their round-off is an absolute floor."""
+    m = foam(nu)
+    got, ref = evaluate("sigma", m, F), cauchy_np(F, m)
+    floor = 1e-15 * sum(abs(2 * mu / a) * (1 + abs(a * b))
+                        for mu, a, b in zip(m.mu, m.alpha, betas_np(nu, len(m.mu))))
+    assert np.abs(got - ref).max() <= 1e-9 * np.abs(ref).max() + floor
 
 
-def test_3d_energy_stress_at_a_general_state():
-    msh = mesh.create_unit_square(MPI.COMM_SELF, 1, 1)
+@pytest.mark.parametrize("nu", NU_CASES, ids=NU_IDS)
+def test_3d_energy_stress_at_a_general_state(evaluate, nu):
+    m = foam(nu)
     F = np.array([[1.2, 0.1, 0.0], [-0.05, 0.8, 0.15], [0.02, 0.0, 1.05]])
-    expr = fem.Expression(mat.cauchy_stress(SKIN, fem.Constant(msh, F)),
-                          np.array([[1 / 3, 1 / 3]]))
-    got, ref = expr.eval(msh, CELL).reshape(3, 3), cauchy_np(F, SKIN)
+    got, ref = evaluate("sigma", m, F), cauchy_np(F, m)
     assert np.abs(got - ref).max() <= 1e-10 * np.abs(ref).max()
+
+
+def test_principal_kirchhoff_is_the_closed_form():
+    lam = np.array([[0.5, 0.8, 1.3], [1.4, 1.1, 0.6], [1.0, 1.0, 1.0]])
+    for nu in NU_CASES:
+        m = foam(nu)
+        ref = np.array([tau_of(m, x) for x in lam])
+        assert np.abs(m.principal_kirchhoff(lam) - ref).max() <= 1e-14 * np.abs(ref).max()
+
+
+# ---- hyperfoam: the β → 0 limit (ν = 0) ----------------------------------------------------
+
+ENERGY_STATES = [(1.3, 0.7, 0.9), (0.4, 0.5, 0.6), (2.0, 1.5, 1.2), (0.7, 1.2, 1.0)]
+
+
+@pytest.mark.parametrize("nu", [0.0, 1e-9, 2e-4, 0.0098, 0.0102, 0.4, (0.0, 0.2, 0.45),
+                                (1e-9, 0.2, 0.0)])
+def test_energy_against_40_digit_closed_form(evaluate, nu):
+    """UFL W (3D; plane strain with λ3 = 1) and numpy against the closed form evaluated in
+    40-digit arithmetic. |β| < 0.01 (ν = 1e-9, 2e-4, 0.0098) takes the sinh form, ν = 0.0102
+    the closed form just above the switch (its error ~eps/β of the term scale there)."""
+    m = foam(nu)
+    worst = 0.0
+    for lam in ENERGY_STATES:
+        ref = energy_decimal(lam, m)
+        worst = max(worst, abs(evaluate("W", m, np.diag(lam)) / ref - 1),
+                    abs(m.principal_energy(np.array(lam)) / ref - 1))
+        ref2 = energy_decimal((lam[0], lam[1], 1.0), m)
+        worst = max(worst, abs(evaluate("W", m, np.diag(lam[:2])) / ref2 - 1))
+    print(f"{m.where}: W, max relative error {worst:.1e}")
+    assert worst < 1e-11
+
+
+def test_beta_to_zero_is_continuous(evaluate):
+    """(J^(−αβ) − 1)/β = −α ln J + α²β ln²J/2 + O(β²), so for one β
+    W(β) − W(0) = Σ 2μ_i/α_i² · α_i²β ln²J/2 = μ0 β ln²J and
+    S(β) − S(0) = 2 ∂/∂C (μ0 β ln²J) = 2μ0 β ln J C⁻¹ (∂ ln J/∂C = C⁻¹/2), up to O(β²).
+    ν = 1e-9: W and S agree with ν = 0 to ~1e-8; ν = 1e-6 (large enough for the difference to
+    stand above round-off, small enough for O(β²) to be ~1e-6 of it): the first-order term
+    itself, to 1e-5."""
+    zero = foam(0.0)
+    states = [np.array([[1.2, 0.1, 0.0], [-0.05, 0.6, 0.15], [0.02, 0.0, 0.7]]),
+              np.array([[1.4, 0.3], [0.1, 1.3]]), np.diag([0.5, 0.8])]
+    for F in states:
+        W0, S0 = evaluate("W", zero, F), evaluate("S", zero, F)
+        for nu, rtol in ((1e-9, 1e-8), (1e-6, 1e-5)):
+            m = foam(nu)
+            b = nu / (1 - 2 * nu)
+            W, S = evaluate("W", m, F), evaluate("S", m, F)
+            ln_J = np.log(np.linalg.det(F))
+            dW = m.mu0 * b * ln_J**2
+            dS = 2 * m.mu0 * b * ln_J * np.linalg.inv(F.T @ F)
+            print(f"nu = {nu:g}: W/W0 − 1 = {W / W0 - 1:.2e}, "
+                  f"(W − W0)/(μ0 β ln²J) − 1 = {(W - W0) / dW - 1:.1e}")
+            if nu == 1e-9:
+                assert abs(W / W0 - 1) < 1e-8
+                assert np.abs(S - S0).max() < 1e-8 * np.abs(S0).max()
+            else:
+                assert (W - W0) == pytest.approx(dW, rel=rtol)
+                assert np.abs(S - S0 - dS).max() < rtol * np.abs(dS).max()
+
+
+def test_nu0_is_finite_far_from_J_1(evaluate):
+    """ν = 0: W, S, σ and the tangent ∂P/∂F finite at J from 1e-3 to 1e3 (and at F = I)."""
+    m = foam(0.0)
+    states = [np.diag([0.05, 0.02]), np.diag([40.0, 25.0]), np.eye(2),
+              np.array([[0.1, 0.05], [0.0, 0.01]]),
+              np.diag([0.05, 0.1, 0.2]), np.diag([12.0, 9.0, 10.5]), np.eye(3)]
+    meshes = {2: mesh.create_unit_square(MPI.COMM_SELF, 1, 1),
+              3: mesh.create_unit_cube(MPI.COMM_SELF, 1, 1, 1)}
+    tangents = {}
+    for d, msh in meshes.items():
+        Fc = fem.Constant(msh, np.eye(d))
+        Fv = ufl.variable(Fc)
+        A = ufl.diff(mat.first_piola_kirchhoff(m, Fv), Fv)
+        tangents[d] = Fc, fem.Expression(A, np.full((1, d), 0.25))
+    for F in states:
+        d = F.shape[0]
+        Fc, expr = tangents[d]
+        Fc.value[:] = F
+        values = [evaluate("W", m, F), evaluate("S", m, F), evaluate("sigma", m, F),
+                  expr.eval(meshes[d], CELL)]
+        assert all(np.all(np.isfinite(v)) for v in values), F
+    lam = np.array([[0.05, 0.02, 1.0], [40.0, 25.0, 1.0], [1e-3, 1.0, 1.0], [1e3, 1.0, 1.0]])
+    assert np.all(np.isfinite(m.principal_kirchhoff(lam)))
+    assert np.all(np.isfinite(m.principal_energy(lam)))
 
 
 def test_moduli_of_the_paper_sets():
@@ -92,6 +335,26 @@ def test_moduli_of_the_paper_sets():
     # ν recovered from the small-strain moduli: ν = (3K − 2μ)/(2(3K + μ)).
     K, G = SKIN.K0, SKIN.mu0
     assert (3 * K - 2 * G) / (2 * (3 * K + G)) == pytest.approx(0.40, rel=1e-12)
+    assert SKIN.nu0 == 0.4 and SKIN.betas == (SKIN.beta,) * 3
+
+
+def test_moduli_with_nu0_and_per_term_nu():
+    zero = foam(0.0)
+    assert zero.beta == 0.0 and zero.betas == (0.0, 0.0, 0.0)
+    assert zero.K0 == pytest.approx(2 * zero.mu0 / 3, rel=1e-12)  # λ0 = 0: no volume coupling
+    assert zero.lame_lambda0 == 0.0
+    m = foam((0.0, 0.2, 0.45))
+    betas = (0.0, 0.2 / 0.6, 0.45 / 0.1)
+    assert m.nu == (0.0, 0.2, 0.45) and m.nus == m.nu
+    assert m.betas == pytest.approx(betas, rel=1e-15)
+    K = sum(2 * mu * (1 / 3 + b) for mu, b in zip(m.mu, betas))
+    assert m.K0 == pytest.approx(K, rel=1e-14)
+    assert m.nu0 == pytest.approx((3 * K - 2 * m.mu0) / (2 * (3 * K + m.mu0)), rel=1e-14)
+    with pytest.raises(InputError, match="differs per term.*betas"):
+        _ = m.beta
+    # The same ν written per term is the same material (and has a single β).
+    same = foam((0.4, 0.4, 0.4))
+    assert same.beta == SKIN.beta and same.K0 == SKIN.K0
 
 
 # ---- tangent at u = 0 and Newton --------------------------------------------------------
@@ -110,17 +373,27 @@ def dense(form):
     return A.to_dense()
 
 
-def test_tangent_at_u0_is_the_linear_elastic_stiffness(square):
-    """d²W at u = 0 must be the plane-strain Hooke tensor with μ0 and λ0 = K0 − 2μ0/3."""
-    msh, V = square
+@pytest.mark.parametrize("nu", NU_CASES, ids=NU_IDS)
+def test_tangent_at_u0_is_the_linear_elastic_stiffness(square, nu):
+    """d²W at u = 0 must be the plane-strain Hooke tensor with μ0 = Σμ_i and
+    λ0 = K0 − 2μ0/3 = Σ 2μ_iβ_i (K0 = Σ 2μ_i(1/3 + β_i)); λ0 = 0 at ν = 0."""
+    m = foam(nu)
+    mu0 = sum(m.mu)
+    lam0 = sum(2 * mu * b for mu, b in zip(m.mu, betas_np(nu, len(m.mu))))
+    assert m.mu0 == pytest.approx(mu0, rel=1e-14)
+    assert m.lame_lambda0 == pytest.approx(lam0, rel=1e-12, abs=1e-15 * mu0)
+    _, V = square
     u, v, du = fem.Function(V), ufl.TestFunction(V), ufl.TrialFunction(V)
-    R = ufl.inner(mat.first_piola_kirchhoff(SKIN, deformation_gradient(u)), ufl.grad(v)) * ufl.dx
+    R = ufl.inner(mat.first_piola_kirchhoff(m, deformation_gradient(u)), ufl.grad(v)) * ufl.dx
     K = dense(ufl.derivative(R, u, du))
-    eps = lambda w: ufl.sym(ufl.grad(w))  # noqa: E731
-    K_lin = dense((SKIN.lame_lambda0 * ufl.tr(eps(du)) * ufl.tr(eps(v))
-                   + 2 * SKIN.mu0 * ufl.inner(eps(du), eps(v))) * ufl.dx)
+
+    def eps(w):
+        return ufl.sym(ufl.grad(w))
+
+    K_lin = dense((lam0 * ufl.tr(eps(du)) * ufl.tr(eps(v))
+                   + 2 * mu0 * ufl.inner(eps(du), eps(v))) * ufl.dx)
     err = np.abs(K - K_lin).max() / np.abs(K_lin).max()
-    print(f"tangent at u = 0: max relative error {err:.2e}")
+    print(f"{m.where}: tangent at u = 0, max relative error {err:.2e}")
     assert err < 1e-10
 
 
@@ -200,13 +473,18 @@ def test_prony_relaxation_and_model_md_numbers():
 
 
 @pytest.mark.parametrize("kwargs, words", [
-    (dict(mu=(0.1, 0.2), alpha=(2.0,), nu=0.3), "'alpha' has 1"),
-    (dict(mu=(0.1,), alpha=(0.0,), nu=0.3), "contains 0"),
-    (dict(mu=(0.1,), alpha=(2.0,), nu=0.5), "outside (-1, 0.5)"),
-    (dict(mu=(-0.1, 0.05), alpha=(2.0, 3.0), nu=0.3), "mu0"),
-    (dict(mu=(), alpha=(), nu=0.3), "empty"),
-    (dict(mu="0.1", alpha=(2.0,), nu=0.3), "list of numbers"),
-    (dict(mu=(0.1,), alpha=(float("nan"),), nu=0.3), "non-finite"),
+    ({"mu": (0.1, 0.2), "alpha": (2.0,), "nu": 0.3}, "'alpha' has 1"),
+    ({"mu": (0.1,), "alpha": (0.0,), "nu": 0.3}, "contains 0"),
+    ({"mu": (0.1,), "alpha": (2.0,), "nu": 0.5}, "outside (-1, 0.5)"),
+    ({"mu": (-0.1, 0.05), "alpha": (2.0, 3.0), "nu": 0.3}, "mu0"),
+    ({"mu": (), "alpha": (), "nu": 0.3}, "empty"),
+    ({"mu": "0.1", "alpha": (2.0,), "nu": 0.3}, "list of numbers"),
+    ({"mu": (0.1,), "alpha": (float("nan"),), "nu": 0.3}, "non-finite"),
+    ({"mu": (0.1, 0.2), "alpha": (2.0, 3.0), "nu": (0.3,)}, "'nu' has 1 values"),
+    ({"mu": (0.1, 0.2), "alpha": (2.0, 3.0), "nu": (0.3, 0.5)}, "[0.5] are outside (-1, 0.5)"),
+    ({"mu": (0.1, 0.2), "alpha": (2.0, 3.0), "nu": (0.3, "x")}, "list of numbers"),
+    # μ0 = 0.05 > 0, but K0 = 2(−0.1(1/3 + 24.5) + 0.15/3) < 0: a stiff-in-volume negative term
+    ({"mu": (-0.1, 0.15), "alpha": (2.0, 3.0), "nu": (0.49, 0.0)}, "K0"),
 ])
 def test_hyperfoam_rejects_bad_parameters(kwargs, words):
     with pytest.raises(InputError, match=None) as err:
@@ -224,10 +502,16 @@ def test_bulk_modulus_follows_from_mu0_and_nu():
 def test_from_dict_keys_and_values():
     ok = mat.Hyperfoam.from_dict({"mu": [1e-3], "alpha": [2.0], "nu": 0.3}, where="t.toml")
     assert ok.mu == (1e-3,) and isinstance(ok.mu, tuple)
-    with pytest.raises(InputError, match=r"unknown parameter\(s\) \['alpha1'\]"):
+    per_term = mat.Hyperfoam.from_dict({"mu": [1e-3, 2e-3], "alpha": [2.0, 4.0], "nu": [0, 0.2]})
+    assert per_term.nu == (0.0, 0.2) and per_term.betas == (0.0, 0.2 / 0.6)
+    assert mat.Hyperfoam.from_dict({"mu": [1e-3], "alpha": [2.0], "nu": 0}).nu == 0.0
+    with pytest.raises(InputError, match=r"hyperfoam\.alpha1: unknown parameter\(s\).*"
+                                         r"takes: mu, alpha, nu"):
         mat.Hyperfoam.from_dict({"mu": [1e-3], "alpha1": [2.0], "nu": 0.3})
-    with pytest.raises(InputError, match=r"missing parameter\(s\) \['nu'\]"):
+    with pytest.raises(InputError, match=r"missing parameter\(s\) nu"):
         mat.Hyperfoam.from_dict({"mu": [1e-3], "alpha": [2.0]})
+    with pytest.raises(InputError, match="must be a table"):
+        mat.Hyperfoam.from_dict([1e-3, 2.0, 0.3])
     with pytest.raises(InputError, match="'E' = -1.0"):
         mat.LinearElastic.from_dict({"E": -1.0, "nu": 0.3})
     with pytest.raises(InputError, match="must be a number"):
@@ -235,10 +519,10 @@ def test_from_dict_keys_and_values():
 
 
 @pytest.mark.parametrize("kwargs, words", [
-    (dict(g=(0.5, 0.6), tau=(1.0, 2.0)), "sum(g)"),
-    (dict(g=(0.1, -0.1), tau=(1.0, 2.0)), "must be > 0"),
-    (dict(g=(0.1,), tau=(1.0, 2.0)), "'tau' has 2"),
-    (dict(g=(0.1,), tau=(0.0,)), "relaxation times"),
+    ({"g": (0.5, 0.6), "tau": (1.0, 2.0)}, "sum(g)"),
+    ({"g": (0.1, -0.1), "tau": (1.0, 2.0)}, "must be > 0"),
+    ({"g": (0.1,), "tau": (1.0, 2.0)}, "'tau' has 2"),
+    ({"g": (0.1,), "tau": (0.0,)}, "relaxation times"),
 ])
 def test_prony_rejects_bad_parameters(kwargs, words):
     with pytest.raises(InputError) as err:
@@ -247,9 +531,9 @@ def test_prony_rejects_bad_parameters(kwargs, words):
 
 
 @pytest.mark.parametrize("kwargs, words", [
-    (dict(k0=0.0, phi0=0.4, kappa=0.1, M=1.0), "'k0'"),
-    (dict(k0=1e-3, phi0=1.0, kappa=0.1, M=1.0), "'phi0'"),
-    (dict(k0=1e-3, phi0=0.4, kappa=-0.1, M=1.0), "'kappa'"),
+    ({"k0": 0.0, "phi0": 0.4, "kappa": 0.1, "M": 1.0}, "'k0'"),
+    ({"k0": 1e-3, "phi0": 1.0, "kappa": 0.1, "M": 1.0}, "'phi0'"),
+    ({"k0": 1e-3, "phi0": 0.4, "kappa": -0.1, "M": 1.0}, "'kappa'"),
 ])
 def test_holmes_mow_rejects_bad_parameters(kwargs, words):
     with pytest.raises(InputError) as err:

@@ -40,11 +40,11 @@ from dolfinx import fem, mesh
 from mpi4py import MPI
 
 from .. import materials as mat
+from ..drucker import check_state, drucker_check
 from ..errors import CompactionError, ConvergenceError, FingertipError, MaterialInstabilityError
 from ..kinematics import deformation_gradient, eigen_sum
 from ..loading import PiecewiseLinear
 from ..solver import _SNES_REASONS, StepOptions, TimeStepper
-from ..stability import check_state, drucker_check
 from .problems import (
     ConfinedBlock,
     Hertz,

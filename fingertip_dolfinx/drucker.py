@@ -4,7 +4,9 @@ Drucker's postulate dτ : dε > 0 (Kirchhoff stress τ, logarithmic strain ε) f
 admissible strain increment. In the principal axes of an isotropic material this splits into
 
 1. coaxial increments: D_ab = ∂τ_a/∂ε_b, ε_b = ln λ_b, must be positive definite. For the
-   hyperfoam D = diag(d_a) + v 11ᵀ with d_a = Σ 2μ_i λ_a^α_i and v = Σ 2μ_i β J^(−α_i β).
+   hyperfoam, τ_a = Σ (2μ_i/α_i)(λ_a^α_i − J^(−α_i β_i)) and ∂ ln J/∂ε_b = 1, so
+   D = diag(d_a) + v 11ᵀ with d_a = Σ 2μ_i λ_a^α_i and v = Σ 2μ_i β_i J^(−α_i β_i)
+   (a term with ν_i = 0 has no volume stiffness of its own: its v-part is 0).
    Plane strain admits only in-plane increments (dε3 = 0): the 2×2 block a, b ∈ {1, 2} at
    λ3 = 1. 3D: the full 3×3.
 2. shear increments in each principal plane (a, b): (τ_a − τ_b)/(ε_a − ε_b) > 0 (the
@@ -37,7 +39,7 @@ from .materials import Hyperfoam
 def coaxial_tangent_parts(material: Hyperfoam, stretches) -> tuple[np.ndarray, np.ndarray]:
     """(d, v) with D = diag(d) + v 11ᵀ = ∂τ/∂(ln λ); stretches (..., 3)."""
     lam = np.asarray(stretches, dtype=float)
-    mu, al, b = np.asarray(material.mu), np.asarray(material.alpha), material.beta
+    mu, al, b = np.asarray(material.mu), np.asarray(material.alpha), np.asarray(material.betas)
     J = np.prod(lam, axis=-1)
     d = np.sum(2 * mu * lam[..., None] ** al, axis=-1)
     v = np.sum(2 * mu * b * J[..., None] ** (-al * b), axis=-1)
@@ -81,20 +83,68 @@ def is_stable(material: Hyperfoam, stretches, plane_strain: bool = True) -> np.n
     return ok
 
 
+#: Homogeneous test paths, one letter per principal axis: 's' the stretch parameter, 't' a free
+#: axis (zero stress), '1' held. Plane strain lists the in-plane axes (λ3 = 1 is added later).
+_PATHS_PLANE = {"equibiaxial": "ss", "uniaxial": "st"}
+_PATHS_3D = {"equibiaxial": "sst", "uniaxial": "stt", "planar": "s1t", "volumetric": "sss"}
+
+
+def _free_stretch(material: Hyperfoam, s: np.ndarray, n_s: int, n_f: int) -> np.ndarray:
+    """Stretch t of the n_f free axes where their stress τ_f = Σ(2μ_i/α_i)(t^α_i − J^(−α_iβ_i))
+    vanishes, J = s^n_s t^n_f.
+
+    One β: t = J^(−β) zeroes every term at once, i.e. t = s^(−β n_s/(1 + n_f β)). Per-term β_i:
+    no closed form; Newton in ln t, continued outwards from s = 1 (t = 1) through the sorted s,
+    with ∂τ_f/∂ ln t = d_f + n_f v (the coaxial tangent). Where it cannot be followed (that
+    slope ≤ 0, which is itself a Drucker failure, or no convergence) t is NaN, and `is_stable`
+    reports NaN states unstable."""
+    betas = material.betas
+    if n_f == 0:  # no free axis
+        return np.ones_like(s)
+    if len(set(betas)) == 1:
+        return s ** (-betas[0] * n_s / (1 + n_f * betas[0]))
+    mu, al, b = np.asarray(material.mu), np.asarray(material.alpha), np.asarray(betas)
+    log_s = np.log(s)
+    log_t = np.full(s.shape, np.nan)
+    for side in (log_s < 0, log_s >= 0):
+        x = 0.0
+        for i in np.flatnonzero(side)[np.argsort(np.abs(log_s[side]))]:
+            x = _newton_free(mu, al, b, n_s * log_s[i], n_f, x)
+            if not np.isfinite(x):
+                break  # lost the path: the rest of this side stays NaN
+            log_t[i] = x
+    return np.exp(log_t)
+
+
+def _newton_free(mu, al, b, n_s_log_s: float, n_f: int, x: float) -> float:
+    """Newton for τ_f(x = ln t) = 0 from x; converged when the step is below 1e-12 or the
+    residual is at round-off of its largest term; NaN if the slope is not positive."""
+    for _ in range(50):
+        stretch = np.exp(al * x)  # t^α_i
+        vol = np.exp(-al * b * (n_s_log_s + n_f * x))  # J^(−α_i β_i)
+        tau = np.sum(2 * mu / al * (stretch - vol))
+        slope = np.sum(2 * mu * (stretch + n_f * b * vol))
+        if not slope > 0:
+            return np.nan
+        step = tau / slope
+        x -= step
+        if abs(step) < 1e-12 or abs(tau) <= 1e-14 * np.sum(np.abs(2 * mu / al) * (stretch + vol)):
+            return x
+    return np.nan
+
+
 def _paths(material: Hyperfoam, plane_strain: bool) -> dict:
-    """Homogeneous test paths λ ↦ principal stretches (lateral stresses zero where free)."""
-    b = material.beta
-    if plane_strain:
-        return {
-            "equibiaxial": lambda s: np.stack([s, s], -1),
-            "uniaxial": lambda s: np.stack([s, s ** (-b / (1 + b))], -1),
-        }
-    return {
-        "equibiaxial": lambda s: np.stack([s, s, s ** (-2 * b / (1 + b))], -1),
-        "uniaxial": lambda s: np.stack([s, s ** (-b / (1 + 2 * b)), s ** (-b / (1 + 2 * b))], -1),
-        "planar": lambda s: np.stack([s, np.ones_like(s), s ** (-b / (1 + b))], -1),
-        "volumetric": lambda s: np.stack([s, s, s], -1),
-    }
+    """Test paths: name -> (s ↦ principal stretches), the free axes' stresses zero."""
+    def path(axes: str):
+        def stretches(s):
+            s = np.asarray(s, dtype=float)
+            t = _free_stretch(material, s, axes.count("s"), axes.count("t"))
+            values = {"s": s, "t": t, "1": np.ones_like(s)}
+            return np.stack([values[a] for a in axes], -1)
+        return stretches
+
+    return {name: path(axes)
+            for name, axes in (_PATHS_PLANE if plane_strain else _PATHS_3D).items()}
 
 
 @dataclass(frozen=True)
@@ -119,7 +169,7 @@ class DruckerResult:
         lines = [f"Drucker check ({kind}) of {self.material.where}, stretches in [{lo}, {hi}]:",
                  f"  stable on {self.stable.mean():.1%} of the grid"]
         for path, (c, t) in self.first_unstable.items():
-            fmt = lambda x: "stable" if x is None else f"{x:.3f}"  # noqa: E731
+            fmt = lambda x: "stable" if x is None else f"{x:.3f}"
             lines.append(f"  {path}: compression {fmt(c)}, tension {fmt(t)}")
         return "\n".join(lines)
 
