@@ -9,6 +9,14 @@ deformed fingertip cross-section with the wedge pressed into the pulp.
 Everything is drawn with linear cells at the mesh's geometry nodes: a P2 field or displacement
 is shown by its values at the vertices. Collective: every rank sends the cells it owns to rank
 0, which renders alone and writes the PNG.
+
+Usage (a FingertipProblem `p` at time t; the indenters at their current tips)::
+
+    tips = [(o.indenter, float(o.y_tip.value)) for o in p.obstacles]
+    plot_field(p.mesh, p.fmesh.cell_tags, p.u, p.u.sub(1), "u2.png", label="u2 (mm)",
+               indenters=tips)
+    plot_field(p.mesh, p.fmesh.cell_tags, p.u, p.p, "p.png", label="p (MPa)",
+               indenters=tips, field_mesh_nodes=p.submesh_nodes)
 """
 
 from __future__ import annotations
@@ -31,8 +39,10 @@ from .indenters import Indenter
 WINDOW_SIZE = (1600, 1200)
 #: Share of the picture's height given to the colour bar below the section.
 BAR_SHARE = 0.13
-#: Where the window goes inside the upper part (fractions: left, right, bottom, top).
-CONTENT_BOX = (0.03, 0.97, 0.03, 0.91)
+#: Where the window goes inside the upper part (fractions: left, right, bottom, top); the top
+#: is lower when there is a title.
+CONTENT_BOX = (0.03, 0.97, 0.03, 0.97)
+TITLED_TOP = 0.91
 #: The section where the field has no value (outside a submesh), and the indenters.
 BODY_GREY = "#d9d9d9"
 INDENTER_GREY = "#808080"
@@ -286,11 +296,11 @@ def _indenter_shapes(indenters, window) -> pv.UnstructuredGrid | None:
     return inside if inside.n_cells else None
 
 
-def _frame(renderer, window, aspect: float):
-    """Parallel 2D view (looking down -z, x right, y up) fitting `window` into CONTENT_BOX of a
-    renderer of width/height `aspect`; returns the half width and height of the view (mm)."""
+def _frame(renderer, window, aspect: float, top: float):
+    """Parallel 2D view (looking down -z, x right, y up) fitting `window` into CONTENT_BOX (up to
+    `top`) of a renderer of width/height `aspect`; returns the view's half width, height (mm)."""
     (x0, x1), (y0, y1) = window
-    left, right, bottom, top = CONTENT_BOX
+    left, right, bottom, _ = CONTENT_BOX
     half_h = max((y1 - y0) / (2 * (top - bottom)), (x1 - x0) / (2 * (right - left) * aspect))
     half_w = half_h * aspect
     fx = 0.5 * (x0 + x1) + half_w * (1 - (left + right))
@@ -323,8 +333,9 @@ def _render(section_grid, field_grid, clim, indenters, window, path: Path, *, la
         draw.add(_outline(section_grid), color="black", line_width=1.5)
         if title:
             plotter.add_text(title, position="upper_edge", font_size=14, color="black")
-        half_w, half_h = _frame(plotter.renderer, window,
-                                WINDOW_SIZE[0] / (WINDOW_SIZE[1] * (1 - BAR_SHARE)))
+        aspect = WINDOW_SIZE[0] / (WINDOW_SIZE[1] * (1 - BAR_SHARE))
+        half_w, half_h = _frame(plotter.renderer, window, aspect,
+                                TITLED_TOP if title else CONTENT_BOX[3])
         plotter.subplot(1, 0)
         _scale_bar(plotter, half_w, half_h * BAR_SHARE / (1 - BAR_SHARE))
         if field is not None:  # else no part of the field is in the window

@@ -150,6 +150,14 @@ def test_function_fields(comm, shared_tmp_path, family, degree):
         assert clim == pytest.approx(expected, abs=1e-12)
 
 
+def test_displacement_component(comm, shared_tmp_path):
+    """u.sub(1) of the P2 displacement: u2 without a copy (the recorder's picture)."""
+    msh, tags, u, _ = _rectangle(comm)
+    clim = plot_field(msh, tags, u, u.sub(1), shared_tmp_path / "u2.png", label="u2 (mm)")
+    if comm.rank == 0:
+        assert clim == pytest.approx((0.0, 2 * A), abs=1e-12)
+
+
 def test_node_array_field(comm, shared_tmp_path):
     msh, tags, u, _ = _rectangle(comm)
     clim = plot_field(msh, tags, u, 3.0 * msh.geometry.x[:, 1], shared_tmp_path / "y.png",
