@@ -1,0 +1,422 @@
+"""Field pictures with pyvista (off-screen): a scalar field on the deformed section.
+
+`plot_field` draws the whole section at its current position (nodes moved by the displacement,
+mm), coloured by one scalar field (a displacement component in mm, the pore pressure in MPa, a
+strain, ...), with thin black outlines of the regions and of the outer boundary, and the rigid
+indenters in place as filled grey shapes: the picture of Fig. 4 of Wu et al. (2004), the
+deformed fingertip cross-section with the wedge pressed into the pulp.
+
+Everything is drawn with linear cells at the mesh's geometry nodes: a P2 field or displacement
+is shown by its values at the vertices. Collective: every rank sends the cells it owns to rank
+0, which renders alone and writes the PNG.
+
+Usage (a FingertipProblem `p` at time t; the indenters at their current tips)::
+
+    tips = [(o.indenter, float(o.y_tip.value)) for o in p.obstacles]
+    plot_field(p.mesh, p.fmesh.cell_tags, p.u, p.u.sub(1), "u2.png", label="u2 (mm)",
+               indenters=tips)
+    plot_field(p.mesh, p.fmesh.cell_tags, p.u, p.p, "p.png", label="p (MPa)",
+               indenters=tips, field_mesh_nodes=p.submesh_nodes)
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from dataclasses import field as dataclass_field
+from pathlib import Path
+
+import basix
+import numpy as np
+import pyvista as pv
+from dolfinx import fem, plot
+from dolfinx import mesh as dmesh
+from matplotlib.ticker import MaxNLocator
+
+from .indenters import Indenter
+
+#: Picture size in pixels (width, height).
+WINDOW_SIZE = (1600, 1200)
+#: Share of the picture's height given to the colour bar below the section.
+BAR_SHARE = 0.13
+#: Where the window goes inside the upper part (fractions: left, right, bottom, top); the top
+#: is lower when there is a title.
+CONTENT_BOX = (0.03, 0.97, 0.03, 0.97)
+TITLED_TOP = 0.91
+#: The section where the field has no value (outside a submesh), and the indenters.
+BODY_GREY = "#d9d9d9"
+INDENTER_GREY = "#808080"
+#: Grid cells across the indenter grid (its zero level set is drawn with this resolution).
+INDENTER_GRID_CELLS = 800
+_VTK_TYPE = {dmesh.CellType.triangle: pv.CellType.TRIANGLE,
+             dmesh.CellType.quadrilateral: pv.CellType.QUAD}
+
+
+@dataclass
+class _Piece:
+    """Linear cells owned by one rank, ready to be joined with the other ranks' pieces on rank 0.
+
+    `ids` number the local nodes globally (nodes shared between ranks are joined by them);
+    `points` are their deformed positions (mm); `cells` index the local nodes in VTK order.
+    """
+
+    ids: np.ndarray  # (m,)
+    points: np.ndarray  # (m, 2)
+    cells: np.ndarray  # (n, k)
+    vtk_type: int
+    point_data: dict[str, np.ndarray] = dataclass_field(default_factory=dict)
+    cell_data: dict[str, np.ndarray] = dataclass_field(default_factory=dict)
+
+
+def plot_field(
+    msh: dmesh.Mesh,
+    cell_tags: dmesh.MeshTags,
+    u: fem.Function,
+    field: fem.Function | np.ndarray,
+    path: str | Path,
+    *,
+    label: str,
+    title: str = "",
+    indenters: Sequence[tuple[Indenter, float]] = (),
+    window: tuple[tuple[float, float], tuple[float, float]] | None = None,
+    field_mesh_nodes: np.ndarray | None = None,
+    cmap: str = "viridis",
+) -> tuple[float, float] | None:
+    """Draw `field` on the section deformed by `u` and write a PNG to `path`. Collective.
+
+    msh, cell_tags: the 2D mesh (triangles or quadrilaterals, affine geometry) and its region
+        tags; region boundaries and the outer boundary are outlined in black.
+    u: the displacement (mm), a vector Lagrange function (degree 1 or 2) on `msh`.
+    field: the scalar to colour by, one of
+        - a Lagrange (P1, P2) or DG (DG0, DG1, ...) function on `msh`;
+        - a Lagrange function on a submesh of `msh` (e.g. the pore pressure, MPa, on the
+          subcutaneous cells): pass `field_mesh_nodes`, the 4th return of
+          `dolfinx.mesh.create_submesh` (submesh geometry node -> `msh` geometry node); the
+          rest of the section is drawn in light grey;
+        - a numpy array of values at `msh`'s local geometry nodes (`msh.geometry.x` rows).
+    label: colour-bar title, with units ("u2 (mm)", "p (MPa)").
+    indenters: (Indenter, y_tip) pairs, y_tip in mm; drawn filled grey where φ < 0.
+    window: ((xmin, xmax), (ymin, ymax)) in mm; default: the deformed section and the top of
+        the indenters.
+    cmap: a matplotlib colour map name.
+
+    Returns the colour range (min, max of the drawn values) on rank 0, None on other ranks.
+    """
+    section, own = _pieces(msh, cell_tags, u, field, field_mesh_nodes)
+    section_grid = _gather(msh.comm, section)
+    field_grid = section_grid if own is None else _gather(msh.comm, own)
+    if msh.comm.rank != 0:
+        return None
+    values = field_grid.point_data.get("field", field_grid.cell_data.get("field"))
+    clim = (float(np.nanmin(values)), float(np.nanmax(values)))
+    if window is None:
+        window = _default_window(section_grid.bounds, indenters)
+    _render(section_grid, field_grid, clim, indenters, window, Path(path),
+            label=label, title=title, cmap=cmap)
+    return clim
+
+
+# --- data: values at the geometry nodes, one piece per rank -------------------------------------
+
+
+def _pieces(msh, cell_tags, u, field, field_mesh_nodes) -> tuple[_Piece, _Piece | None]:
+    """The section's piece (region tags, and the field if it lives on its nodes or cells) and
+    the field's own piece when it has other nodes (a submesh, a discontinuous field)."""
+    _check_mesh(msh)
+    node_disp = _node_values(u)
+    section = _section_piece(msh, cell_tags, node_disp)
+    if field_mesh_nodes is not None:
+        return section, _submesh_piece(field, section.points, field_mesh_nodes)
+    if isinstance(field, np.ndarray):
+        if field.shape != (len(section.ids),):
+            raise ValueError(f"field: {field.shape} values given, the mesh has "
+                             f"{len(section.ids)} local geometry nodes.")
+        section.point_data["field"] = np.asarray(field, dtype=float)
+        return section, None
+    element = _scalar_lagrange(field)
+    if field.function_space.mesh.topology.index_map(2).size_global != (
+            msh.topology.index_map(2).size_global):
+        raise ValueError("field: lives on another mesh; for a submesh pass field_mesh_nodes.")
+    if not element.discontinuous:
+        section.point_data["field"] = _node_values(field)[:, 0]
+    elif element.degree == 0:
+        owned = msh.topology.index_map(2).size_local
+        section.cell_data["field"] = field.x.array[field.function_space.dofmap.list[:owned, 0]]
+    else:
+        return section, _dg_piece(field, node_disp)
+    return section, None
+
+
+def _check_mesh(msh: dmesh.Mesh):
+    """Only straight-sided triangles and quadrilaterals in 2D are drawn."""
+    if msh.topology.cell_type not in _VTK_TYPE or msh.geometry.cmaps[0].degree != 1:
+        raise ValueError(f"plot_field draws affine triangles or quadrilaterals, not "
+                         f"{msh.topology.cell_name()} cells of degree "
+                         f"{msh.geometry.cmaps[0].degree}.")
+
+
+def _scalar_lagrange(f: fem.Function):
+    """The element of `f`, checked to be scalar (continuous or discontinuous) Lagrange."""
+    element = f.function_space.ufl_element()
+    if f.function_space.value_shape != () or element.element_family != basix.ElementFamily.P:
+        raise ValueError(f"field {f.name!r}: a scalar Lagrange or DG function is needed.")
+    return element
+
+
+def _node_values(f: fem.Function) -> np.ndarray:
+    """A Lagrange function's values at its mesh's local geometry nodes, shape (nodes, size).
+
+    Interpolated into P1 first (exact at the vertices for P1 and P2), whose cell dofs are in the
+    same order as the cells' geometry nodes.
+    """
+    msh = f.function_space.mesh
+    shape = f.function_space.value_shape
+    P1 = fem.functionspace(msh, ("Lagrange", 1, shape) if shape else ("Lagrange", 1))
+    f1 = fem.Function(P1)
+    f1.interpolate(f)
+    bs = P1.dofmap.index_map_bs
+    values = np.zeros((msh.geometry.x.shape[0], bs))
+    nodes = msh.geometry.dofmaps[0]
+    values[nodes.ravel()] = f1.x.array.reshape(-1, bs)[P1.dofmap.list.ravel()]
+    return values
+
+
+def _cells_piece(msh: dmesh.Mesh, points: np.ndarray) -> _Piece:
+    """The owned cells of `msh` at the node positions `points` (local geometry nodes, mm)."""
+    owned = np.arange(msh.topology.index_map(2).size_local, dtype=np.int32)
+    topology, _, _ = plot.vtk_mesh(msh, 2, owned)
+    k = msh.geometry.dofmaps[0].shape[1]
+    ids = msh.geometry.index_map().local_to_global(np.arange(len(points), dtype=np.int32))
+    return _Piece(ids, points, topology.reshape(-1, k + 1)[:, 1:],
+                  _VTK_TYPE[msh.topology.cell_type])
+
+
+def _section_piece(msh, cell_tags, node_disp: np.ndarray) -> _Piece:
+    """The whole section, deformed, with each owned cell's region tag (-1: untagged)."""
+    piece = _cells_piece(msh, msh.geometry.x[:, :2] + node_disp)
+    owned = len(piece.cells)
+    region = np.full(owned, -1, dtype=np.int32)
+    mine = cell_tags.indices < owned
+    region[cell_tags.indices[mine]] = cell_tags.values[mine]
+    piece.cell_data["region"] = region
+    return piece
+
+
+def _submesh_piece(field: fem.Function, parent_points, field_mesh_nodes) -> _Piece:
+    """A Lagrange field on a submesh, its nodes moved with their parent nodes."""
+    _scalar_lagrange(field)
+    submesh = field.function_space.mesh
+    if field.function_space.ufl_element().discontinuous:
+        raise ValueError(f"field {field.name!r}: only continuous fields on a submesh.")
+    if len(field_mesh_nodes) != submesh.geometry.x.shape[0]:
+        raise ValueError("field_mesh_nodes: one parent node per submesh geometry node needed "
+                         "(the 4th return of create_submesh).")
+    piece = _cells_piece(submesh, parent_points[np.asarray(field_mesh_nodes)])
+    piece.point_data["field"] = _node_values(field)[:, 0]
+    return piece
+
+
+def _dg_piece(field: fem.Function, node_disp: np.ndarray) -> _Piece:
+    """A discontinuous field as DG1: every cell has its own corners (the DG1 dofs)."""
+    msh = field.function_space.mesh
+    DG1 = fem.functionspace(msh, ("DG", 1))
+    f1 = fem.Function(DG1)
+    f1.interpolate(field)
+    owned = np.arange(msh.topology.index_map(2).size_local, dtype=np.int32)
+    topology, _, x = plot.vtk_mesh(DG1, owned)
+    # DG1 dofs sit at the cell's vertices in the order of its geometry nodes.
+    disp = np.zeros((len(x), 2))
+    disp[DG1.dofmap.list.ravel()] = node_disp[msh.geometry.dofmaps[0].ravel()]
+    index_map = DG1.dofmap.index_map
+    ids = index_map.local_to_global(np.arange(len(x), dtype=np.int32))
+    k = DG1.dofmap.list.shape[1]
+    return _Piece(ids, x[:, :2] + disp, topology.reshape(-1, k + 1)[:, 1:],
+                  _VTK_TYPE[msh.topology.cell_type], point_data={"field": f1.x.array.copy()})
+
+
+def _gather(comm, piece: _Piece) -> pv.UnstructuredGrid | None:
+    """Join the ranks' pieces on rank 0 (shared nodes once, by global id); None elsewhere."""
+    pieces = comm.gather(piece, root=0)
+    if comm.rank != 0:
+        return None
+    ids = np.concatenate([p.ids for p in pieces])
+    unique, compact = np.unique(ids, return_inverse=True)
+    starts = np.cumsum([0] + [len(p.ids) for p in pieces[:-1]])
+    cells = np.concatenate([compact[start + p.cells] for start, p in zip(starts, pieces)])
+    points = np.zeros((len(unique), 3))
+    points[compact, :2] = np.concatenate([p.points for p in pieces])
+    grid = pv.UnstructuredGrid({piece.vtk_type: cells}, points)
+    for name in piece.point_data:
+        values = np.zeros(len(unique))
+        values[compact] = np.concatenate([p.point_data[name] for p in pieces])
+        grid.point_data[name] = values
+    for name in piece.cell_data:
+        grid.cell_data[name] = np.concatenate([p.cell_data[name] for p in pieces])
+    return grid
+
+
+# --- drawing (rank 0) -----------------------------------------------------------------------------
+
+
+def _default_window(bounds, indenters) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The deformed section (bounds of its grid) and the top fifth of its height below it, where
+    the indenters are seen; 2 % of the size around."""
+    xmin, xmax, ymin, ymax = bounds[:4]
+    if indenters:
+        ymin = min(ymin, min(y for _, y in indenters) - 0.2 * (ymax - ymin))
+    pad = 0.02 * max(xmax - xmin, ymax - ymin)
+    return (xmin - pad, xmax + pad), (ymin - pad, ymax + pad)
+
+
+def _outline(grid: pv.UnstructuredGrid) -> pv.PolyData:
+    """The cell edges between different regions and on the outer boundary, as line segments."""
+    cells = grid.cells_dict[next(iter(grid.cells_dict))]
+    k = cells.shape[1]
+    edges = np.sort(np.stack([cells, np.roll(cells, -1, axis=1)], axis=-1).reshape(-1, 2), axis=1)
+    region = np.repeat(grid.cell_data["region"], k)
+    unique, index, count = np.unique(edges, axis=0, return_inverse=True, return_counts=True)
+    low = np.full(len(unique), np.iinfo(np.int32).max)
+    high = np.full(len(unique), np.iinfo(np.int32).min)
+    np.minimum.at(low, index.ravel(), region)
+    np.maximum.at(high, index.ravel(), region)
+    keep = unique[(count == 1) | (low != high)]
+    lines = np.column_stack([np.full(len(keep), 2), keep]).ravel()
+    return pv.PolyData(grid.points, lines=lines)
+
+
+def _indenter_shapes(indenters, window) -> pv.UnstructuredGrid | None:
+    """The indenters (φ < 0) over the window, cut from a grid of the signed distance φ (mm)."""
+    (x0, x1), (y0, y1) = window
+    h = max(x1 - x0, y1 - y0) / INDENTER_GRID_CELLS
+    n = (int(np.ceil((x1 - x0) / h)) + 1, int(np.ceil((y1 - y0) / h)) + 1, 1)
+    grid = pv.ImageData(dimensions=n, spacing=(h, h, 1.0), origin=(x0, y0, 0.0))
+    grid.point_data["phi"] = np.min(
+        [ind.signed_distance_np(grid.points, y_tip)[0] for ind, y_tip in indenters], axis=0)
+    inside = grid.clip_scalar(scalars="phi", value=0.0, invert=True)
+    return inside if inside.n_cells else None
+
+
+def _frame(renderer, window, aspect: float, top: float):
+    """Parallel 2D view (looking down -z, x right, y up) fitting `window` into CONTENT_BOX (up to
+    `top`) of a renderer of width/height `aspect`; returns the view's half width, height (mm)."""
+    (x0, x1), (y0, y1) = window
+    left, right, bottom, _ = CONTENT_BOX
+    half_h = max((y1 - y0) / (2 * (top - bottom)), (x1 - x0) / (2 * (right - left) * aspect))
+    half_w = half_h * aspect
+    fx = 0.5 * (x0 + x1) + half_w * (1 - (left + right))
+    fy = 0.5 * (y0 + y1) + half_h * (1 - (bottom + top))
+    camera = renderer.camera
+    camera.parallel_projection = True
+    camera.focal_point = (fx, fy, 0.0)
+    camera.position = (fx, fy, 10.0 * max(half_w, half_h))
+    camera.up = (0.0, 1.0, 0.0)
+    camera.parallel_scale = half_h
+    renderer.reset_camera_clipping_range()
+    return half_w, half_h
+
+
+def _render(section_grid, field_grid, clim, indenters, window, path: Path, *, label, title,
+            cmap):
+    """Draw back to front (grey section, field, indenters, outlines) and write the PNG."""
+    plotter = pv.Plotter(off_screen=True, window_size=list(WINDOW_SIZE), shape=(2, 1),
+                         row_weights=[1 - BAR_SHARE, BAR_SHARE], border=False)
+    try:
+        plotter.set_background("white")
+        plotter.subplot(0, 0)
+        draw = _Layers(plotter, window)
+        if field_grid is not section_grid:
+            draw.add(section_grid, color=BODY_GREY)
+        field = draw.add(field_grid, scalars="field", cmap=cmap, clim=_shown_range(clim),
+                         show_scalar_bar=False)
+        if indenters:
+            draw.add(_indenter_shapes(indenters, window), color=INDENTER_GREY)
+        draw.add(_outline(section_grid), color="black", line_width=1.5)
+        if title:
+            plotter.add_text(title, position="upper_edge", font_size=14, color="black")
+        aspect = WINDOW_SIZE[0] / (WINDOW_SIZE[1] * (1 - BAR_SHARE))
+        half_w, half_h = _frame(plotter.renderer, window, aspect,
+                                TITLED_TOP if title else CONTENT_BOX[3])
+        plotter.subplot(1, 0)
+        _scale_bar(plotter, half_w, half_h * BAR_SHARE / (1 - BAR_SHARE))
+        if field is not None:  # else no part of the field is in the window
+            _colour_bar(plotter, field.mapper, label, _shown_range(clim))
+        plotter.screenshot(str(path))
+    finally:
+        plotter.close()
+
+
+class _Layers:
+    """Flat layers cut to the window, each added a little in front of the ones before (z)."""
+
+    def __init__(self, plotter, window):
+        self.plotter, self.window, self.z = plotter, window, 0.0
+        self.dz = 1e-3 * max(window[0][1] - window[0][0], window[1][1] - window[1][0])
+
+    def add(self, dataset, **options):
+        """Add the part of `dataset` inside the window; returns its actor (None if empty)."""
+        if dataset is None:
+            return None
+        (x0, x1), (y0, y1) = self.window
+        inside = dataset.clip_box((x0, x1, y0, y1, -1.0, 1.0), invert=False)
+        if inside.n_cells == 0:
+            return None
+        inside.points[:, 2] = self.z
+        self.z += self.dz
+        return self.plotter.add_mesh(inside, lighting=False, **options)
+
+
+def _scale_bar(plotter, half_w: float, half_h: float):
+    """A round length (1, 2 or 5 x 10^k mm) at the left of the current (lower) renderer, drawn
+    to the scale of the section above: same width `2 half_w` (mm), height `2 half_h` (mm)."""
+    camera = plotter.renderer.camera
+    camera.parallel_projection = True
+    camera.focal_point, camera.position, camera.up = (0, 0, 0), (0, 0, 1), (0, 1, 0)
+    camera.parallel_scale = half_h
+    width = 2 * half_w
+    e = int(np.floor(np.log10(0.1 * width)))
+    length = max(m * 10.0**k for k in (e - 1, e) for m in (1, 2, 5) if m * 10.0**k <= 0.1 * width)
+    start = np.array([-half_w + 0.025 * width, -0.2 * half_h, 0.0])
+    plotter.add_mesh(pv.Line(start, start + [length, 0.0, 0.0]), color="black", line_width=5,
+                     lighting=False)
+    plotter.renderer.reset_camera_clipping_range()
+    centre = 0.025 + 0.5 * length / width
+    text = plotter.add_text(f"{length:g} mm", position=(centre, 0.5), viewport=True,
+                            font_size=12, color="black")
+    text.GetTextProperty().SetJustificationToCentered()
+
+
+def _shown_range(clim) -> tuple[float, float]:
+    """The colour map's range: `clim`, with round-off zeros made 0 (the bar says 0, not
+    -4e-19) and widened if the field is constant."""
+    span = clim[1] - clim[0]
+    if span <= 0:
+        return clim[0] - 0.5, clim[1] + 0.5
+    return tuple(0.0 if abs(c) < 1e-9 * span else c for c in clim)
+
+
+def _ticks(low: float, high: float) -> tuple[np.ndarray, str]:
+    """Round tick values inside [low, high] and the printf format that writes them exactly."""
+    ticks = MaxNLocator(nbins=6, steps=[1, 2, 2.5, 5, 10]).tick_values(low, high)
+    span = high - low
+    ticks = ticks[(ticks >= low - 1e-9 * span) & (ticks <= high + 1e-9 * span)]
+    step = ticks[1] - ticks[0] if len(ticks) > 1 else span
+    digits = next((d for d in range(10)
+                   if np.allclose(np.round(ticks, d), ticks, rtol=0, atol=1e-6 * step)), None)
+    return ticks, ("%.3g" if digits is None else f"%.{digits}f")  # %.3g: tiny values
+
+
+def _colour_bar(plotter, mapper, label: str, shown):
+    """A horizontal colour bar across the current (lower) renderer: bar, ticks, then `label`."""
+    ticks, fmt = _ticks(*shown)
+    bar = plotter.add_scalar_bar(
+        title=label, mapper=mapper, vertical=False, position_x=0.17, position_y=0.4,
+        width=0.7, height=0.58, color="black", label_font_size=22, fmt=fmt,
+        unconstrained_font_size=True)
+    bar.SetTitle("")  # written below instead: VTK puts a horizontal bar's title on its labels
+    bar.SetUseCustomLabels(True)
+    bar.SetCustomLabels(pv.convert_array(ticks))
+    bar.SetTextPositionToPrecedeScalarBar()  # the tick labels under the bar
+    bar.SetBarRatio(0.45)
+    text = plotter.add_text(label, position=(0.52, 0.08), viewport=True, font_size=14,
+                            color="black")
+    text.GetTextProperty().SetJustificationToCentered()

@@ -1,0 +1,176 @@
+"""Field pictures (fieldplots.plot_field): colour range, pixels, indenters, submesh fields.
+
+A rectangle [0, 2] x [0, 1] mm in two regions (x < 0.5: tag 1, x > 0.5: tag 2) is sheared by the
+displacement u = (0, A x): it becomes a parallelogram and u2 = A x is known everywhere, so the
+colour of a pixel can be checked against the colour map at the x it shows.
+"""
+
+import numpy as np
+import pytest
+from dolfinx import fem
+from dolfinx import mesh as dmesh
+from matplotlib import colormaps
+from matplotlib.colors import to_rgb
+from mpi4py import MPI
+from PIL import Image
+
+from fingertip_dolfinx.fieldplots import (
+    BAR_SHARE,
+    BODY_GREY,
+    INDENTER_GREY,
+    WINDOW_SIZE,
+    plot_field,
+)
+from fingertip_dolfinx.indenters import Cylinder
+
+A = 0.2  # shear: u2 = A x (mm), from 0 to 2 A across the body
+X_INTERFACE = 0.5  # the regions' interface (not where two ranks' parts meet, x = 1)
+RIGHT = 2  # tag of the cells with x > X_INTERFACE
+
+
+def _rectangle(comm, cell_type=dmesh.CellType.triangle):
+    """The two-region rectangle, its tags, u = (0, A x) in P2 and u2 in P1."""
+    msh = dmesh.create_rectangle(comm, [[0.0, 0.0], [2.0, 1.0]], [16, 8], cell_type)
+    cells = np.arange(msh.topology.index_map(2).size_local
+                      + msh.topology.index_map(2).num_ghosts, dtype=np.int32)
+    midpoints = dmesh.compute_midpoints(msh, 2, cells)
+    tags = dmesh.meshtags(msh, 2, cells, np.where(midpoints[:, 0] < X_INTERFACE, 1, RIGHT)
+                          .astype(np.int32))
+    u = fem.Function(fem.functionspace(msh, ("Lagrange", 2, (2,))))
+    u.interpolate(lambda x: np.stack([0.0 * x[0], A * x[0]]))
+    u2 = fem.Function(fem.functionspace(msh, ("Lagrange", 1)))
+    u2.interpolate(lambda x: A * x[0])
+    return msh, tags, u, u2
+
+
+def _image(path) -> np.ndarray:
+    """The picture as integers (rows, columns, RGB), only the part above the colour bar."""
+    image = np.asarray(Image.open(path).convert("RGB")).astype(int)
+    assert image.shape == (WINDOW_SIZE[1], WINDOW_SIZE[0], 3)
+    return image[: int(WINDOW_SIZE[1] * (1 - BAR_SHARE)) - 2]
+
+
+def _is(image, colour, tol=3) -> np.ndarray:
+    """Mask of the pixels of one colour (matplotlib name or hex)."""
+    rgb = np.array(to_rgb(colour)) * 255
+    return np.all(np.abs(image - rgb) <= tol, axis=-1)
+
+
+def _body_box(image, coloured=True) -> tuple[int, int, int, int]:
+    """(top, bottom, left, right) pixel rows/columns of the coloured pixels (the colour map's
+    colours are saturated; white, greys and black are not), or of all but white ones."""
+    drawn = image.max(axis=-1) - image.min(axis=-1) > 40 if coloured else ~_is(image, "white")
+    rows, cols = np.nonzero(drawn)
+    return rows.min(), rows.max(), cols.min(), cols.max()
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("cell_type", [dmesh.CellType.triangle, dmesh.CellType.quadrilateral])
+def test_u2_range_and_colours(comm, shared_tmp_path, cell_type):
+    msh, tags, u, u2 = _rectangle(comm, cell_type)
+    path = shared_tmp_path / "u2.png"
+    clim = plot_field(msh, tags, u, u2, path, label="u2 (mm)")
+    if comm.rank != 0:
+        assert clim is None
+        return
+    assert clim == pytest.approx((0.0, 2 * A), abs=1e-12)
+    image = _image(path)
+    top, bottom, left, right = _body_box(image)
+    assert (right - left) / (bottom - top) == pytest.approx(2 / (1 + 2 * A), rel=0.01)
+    # The deformed body spans x in [0, 2] and y in [0, 1 + 2A]; for y in [0.45, 0.95] mm every
+    # x is inside it, and the colour at x is viridis(u2 / 2A) = viridis(x / 2): check every
+    # pixel of three rows, but the black outline of the region interface (a seam between cells
+    # or between the ranks' pieces would show as a mismatch).
+    cols = np.arange(left + 3, right - 2)
+    x = 2 * (cols - left) / (right - left)
+    expected = colormaps["viridis"](x / 2)[:, :3] * 255
+    off_interface = np.abs(x - X_INTERFACE) > 4 * 2 / (right - left)
+    for y in (0.5, 0.7, 0.9):
+        row = round(top + (bottom - top) * (1 + 2 * A - y) / (1 + 2 * A))
+        error = np.abs(image[row, cols] - expected).max(axis=-1)
+        assert error[off_interface].max() <= 10, (y, x[off_interface][error[off_interface] > 10])
+        line = image[row, cols[~off_interface]].sum(axis=-1)  # the outline: 1.5 px, darker
+        assert line.min() < 0.7 * image[row, cols[~off_interface]].sum(axis=-1).max()
+    assert not _is(image, INDENTER_GREY).any()
+
+
+def test_indenter_drawn_below_the_body(comm, shared_tmp_path):
+    msh, tags, u, u2 = _rectangle(comm)
+    path = shared_tmp_path / "indenter.png"
+    cylinder = Cylinder(radius=0.5, centre_x=1.0)
+    clim = plot_field(msh, tags, u, u2, path, label="u2 (mm)", title="sheared rectangle",
+                      indenters=[(cylinder, -0.1)])
+    if comm.rank != 0:
+        return
+    assert clim == pytest.approx((0.0, 2 * A), abs=1e-12)
+    image = _image(path)[120:]  # below the title
+    rows, cols = np.nonzero(_is(image, INDENTER_GREY))
+    assert len(rows) > 2000
+    # Below the body's lowest point (y = 0 at x = 0), centred under x = 1 (the body's middle).
+    _, bottom, left, right = _body_box(image)
+    assert rows.min() > bottom + 20
+    assert abs(cols.mean() - 0.5 * (left + right)) < 5
+
+
+def test_submesh_field(comm, shared_tmp_path):
+    msh, tags, u, _ = _rectangle(comm)
+    submesh, _, _, nodes = dmesh.create_submesh(msh, 2, tags.find(RIGHT))
+    p = fem.Function(fem.functionspace(submesh, ("Lagrange", 1)))
+    p.interpolate(lambda x: 0.01 + 0.002 * x[0] * x[1])  # a pore pressure, MPa
+    path = shared_tmp_path / "p.png"
+    clim = plot_field(msh, tags, u, p, path, label="p (MPa)", field_mesh_nodes=nodes)
+    low = comm.allreduce(p.x.array.min(), op=MPI.MIN)
+    high = comm.allreduce(p.x.array.max(), op=MPI.MAX)
+    if comm.rank != 0:
+        return
+    assert clim == (low, high)
+    image = _image(path)
+    top, bottom, left, right = _body_box(image, coloured=False)
+    row = (top + bottom) // 2
+    at_x = [round(left + (right - left) * x / 2) for x in (0.25, 1.5)]
+    assert _is(image[row, at_x[0]], BODY_GREY)  # x < 0.5: no pressure there, light grey
+    assert not _is(image[row, at_x[1]], BODY_GREY)
+
+
+@pytest.mark.parametrize("family, degree", [("DG", 0), ("DG", 1), ("Lagrange", 2)])
+def test_function_fields(comm, shared_tmp_path, family, degree):
+    """The range of the drawn values: cell values (DG0), corner values (DG1), vertex values
+    (P2, exact here: q is linear)."""
+    msh, tags, u, _ = _rectangle(comm)
+    q = fem.Function(fem.functionspace(msh, (family, degree)))
+    q.interpolate(lambda x: x[0] + 2 * x[1])
+    clim = plot_field(msh, tags, u, q, shared_tmp_path / "q.png", label="q (-)")
+    if degree == 0:  # the values at the cell centroids, inside (0, 4)
+        expected = (comm.allreduce(q.x.array.min(), op=MPI.MIN),
+                    comm.allreduce(q.x.array.max(), op=MPI.MAX))
+        assert 0 < expected[0] < 0.5 and 3.5 < expected[1] < 4
+    else:
+        expected = (0.0, 4.0)
+    if comm.rank == 0:
+        assert clim == pytest.approx(expected, abs=1e-12)
+
+
+def test_displacement_component(comm, shared_tmp_path):
+    """u.sub(1) of the P2 displacement: u2 without a copy (the recorder's picture)."""
+    msh, tags, u, _ = _rectangle(comm)
+    clim = plot_field(msh, tags, u, u.sub(1), shared_tmp_path / "u2.png", label="u2 (mm)")
+    if comm.rank == 0:
+        assert clim == pytest.approx((0.0, 2 * A), abs=1e-12)
+
+
+def test_node_array_field(comm, shared_tmp_path):
+    msh, tags, u, _ = _rectangle(comm)
+    clim = plot_field(msh, tags, u, 3.0 * msh.geometry.x[:, 1], shared_tmp_path / "y.png",
+                      label="3y (mm)")
+    if comm.rank == 0:
+        assert clim == pytest.approx((0.0, 3.0), abs=1e-12)
+    with pytest.raises(ValueError, match="geometry nodes"):
+        plot_field(msh, tags, u, np.zeros(3), shared_tmp_path / "y.png", label="3y (mm)")
+
+
+def test_rejects_a_field_on_another_mesh(comm, shared_tmp_path):
+    msh, tags, u, _ = _rectangle(comm)
+    other = dmesh.create_unit_square(comm, 3, 3)
+    f = fem.Function(fem.functionspace(other, ("Lagrange", 1)))
+    with pytest.raises(ValueError, match="another mesh"):
+        plot_field(msh, tags, u, f, shared_tmp_path / "x.png", label="f")
