@@ -1,34 +1,35 @@
-"""Pictures of the fields at an output time, from the arrays a run gathers (rank 0 only).
+"""Pictures of the fields at an output time, drawn off-screen with pyvista (`fieldplots`).
 
-u2 and the pore pressure on the deformed section near the load (cf. the paper's Fig. 4).
+The whole deformed section with its region outlines and the indenters in place (cf. the
+paper's Fig. 4), one picture per field: the vertical displacement u2, the principal log
+strains e_max and e_min, the strain energy density and, with a biphasic or undrained tissue,
+the pore pressure. Every rank calls; rank 0 draws.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
+from .fieldplots import plot_field
 
-from .figures import plot_field
-
-
-def field_pictures(arrays: dict, out: Path, t: float, scene, problem) -> None:
-    """field_u2_t<t>s.png and, with a pore pressure, field_p_t<t>s.png in `out`."""
-    half = scene.profile_half_width
-    window = ((-half, half), (-float(np.max(arrays["X"][..., 1])) - 0.5, 0.0))
-    pictures = [("u2", arrays["X"] + arrays["u"], arrays["u"][..., 1],
-                 "vertical displacement u2 (mm)")]
-    if "p" in arrays:
-        pictures.append(("p", arrays["X_p"] + arrays["u_p"], arrays["p"], "pore pressure (MPa)"))
-    for name, corners, values, label in pictures:
-        corners, values = _triangles(corners, values)
-        plot_field(corners, values, out / f"field_{name}_t{t:g}s.png", label,
-                   title=f"{scene.name}: {name} at t = {t:g} s", window=window)
+#: name -> (label with units, how to get the field from (problem, derived fields)).
+FIELDS = {
+    "u2": ("vertical displacement u2 (mm)", lambda p, d: p.u.sub(1)),
+    "e_max": ("max principal log strain e_max (-)", lambda p, d: d.principal.sub(0)),
+    "e_min": ("min principal log strain e_min (-)", lambda p, d: d.principal.sub(1)),
+    "sed": ("strain energy density (MPa)", lambda p, d: d.sed),
+    "p": ("pore pressure p (MPa)", lambda p, d: p.p),
+}
 
 
-def _triangles(corners: np.ndarray, values: np.ndarray):
-    """Quadrilaterals as two triangles each (DOLFINx's vertex order); triangles unchanged."""
-    if corners.shape[1] == 4:
-        corners = np.concatenate([corners[:, [0, 1, 3]], corners[:, [0, 3, 2]]])
-        values = np.concatenate([values[:, [0, 1, 3]], values[:, [0, 3, 2]]])
-    return corners, values
+def field_pictures(problem, derived, out: Path, t: float, title: str) -> None:
+    """field_<name>_t<t>s.png in `out` for every field the model has (derived: updated)."""
+    tips = [(o.indenter, float(o.y_tip.value)) for o in problem.obstacles]
+    for name, (label, get) in FIELDS.items():
+        if name == "p" and problem.p is None:
+            continue
+        nodes = problem.submesh_nodes if name == "p" else None
+        plot_field(problem.mesh, problem.fmesh.cell_tags, problem.u, get(problem, derived),
+                   Path(out) / f"field_{name}_t{t:g}s.png", label=label,
+                   title=f"{title}: {name} at t = {t:g} s", indenters=tips,
+                   field_mesh_nodes=nodes)

@@ -189,10 +189,10 @@ class Run:
     def _write_output_time(self, t: float) -> None:
         self.surface.write(self.profiles.surface_rows(t))
         self.depth.write(self.profiles.depth_rows(t))
-        arrays = self.arrays()
+        arrays = self.arrays()  # updates the derived fields
         if self.comm.rank == 0:
             np.savez_compressed(self.out / f"fields_t{t:g}s.npz", time=t, **arrays)
-            field_pictures(arrays, self.out, t, self.scene, self.problem)
+        field_pictures(self.problem, self.derived, self.out, t, self.scene.name)
 
     def _save_checkpoint(self, report) -> None:
         self.checkpoint.save(report.time, report.next_dt, self.step_count,
