@@ -193,24 +193,3 @@ def plot_spacing_profiles(runs: dict[float, dict], path: Path, time_s: float, de
     fig.tight_layout()
     fig.savefig(path, dpi=150)
     plt.close(fig)
-
-
-def plot_field(corners: np.ndarray, values: np.ndarray, path: Path, label: str,
-               title: str = "", cmap: str = "viridis", window=None) -> None:
-    """A P1 field on triangles: `corners` (n, 3, 2) deformed positions, `values` (n, 3)."""
-    from matplotlib.tri import Triangulation
-
-    fig, ax = plt.subplots(figsize=(6.4, 5.6))
-    xy = corners.reshape(-1, 2)
-    tri = Triangulation(xy[:, 0], xy[:, 1], np.arange(len(xy)).reshape(-1, 3))
-    image = ax.tripcolor(tri, values.ravel(), shading="gouraud", cmap=cmap)
-    fig.colorbar(image, ax=ax, label=label, shrink=0.8)
-    ax.set_aspect("equal")
-    if window is not None:
-        ax.set_xlim(window[0]), ax.set_ylim(window[1])
-    ax.set_xlabel("x (mm)")
-    ax.set_ylabel("y (mm)")
-    ax.set_title(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=150)
-    plt.close(fig)
