@@ -13,12 +13,13 @@ import pytest
 from mpi4py import MPI
 
 from fingertip_dolfinx.contact import TipResolutionWarning
-from fingertip_dolfinx.forms import FingertipProblem, ModelOptions
 from fingertip_dolfinx.geometry import load_section
 from fingertip_dolfinx.indenters import load_indenter
 from fingertip_dolfinx.loading import RampHold
 from fingertip_dolfinx.mesh import build_mesh
+from fingertip_dolfinx.model import ModelOptions
 from fingertip_dolfinx.post import read_csv
+from fingertip_dolfinx.problem import FingertipProblem
 from fingertip_dolfinx.scene import load_scene, run_scene
 
 #: Coarse away from the load, 20 µm elements (< the 25 µm tip radius) within 0.25 mm of the tip.
