@@ -1,7 +1,8 @@
 """fingertip-dolfinx: finite-strain biomechanics of touch in FEniCSx.
 
 The chain of modules follows the physics, each depending only on those before it:
-geometry -> mesh -> kinematics -> materials -> contact -> forms -> solver -> scene -> post.
+geometry -> mesh -> kinematics -> materials -> tissues -> contact -> model -> problem -> solver
+-> scene -> post.
 """
 
 try:  # The PyPI wheel's PETSc must be set up before dolfinx or petsc4py is imported.
