@@ -15,14 +15,16 @@ and the pore law of the subcutaneous tissue, the pressure part of the problem (p
     undrained  ∫ (J − J_n) q dX = 0                                      no flow: J = J_n
     drained    no pressure unknown (p = 0)
 
-| `tissue` | skin | subcutaneous | bone, nail |
-| --- | --- | --- | --- |
-| layered | hyperfoam, + QLV if `skin_viscoelastic` and a Prony series | hyperfoam solid (+ pore law) | St Venant–Kirchhoff, or rigid |
-| continuum | σ = λ tr ε I + 2μ ε in every region, W = ½ σ:ε; no pore law, nothing rigid | | |
+The laws per `options.tissue`:
+
+    layered     skin: hyperfoam, with QLV if `skin_viscoelastic` and the skin has a Prony series
+                subcutaneous: the hyperfoam solid's stress (+ its pore law)
+                bone, nail: St Venant–Kirchhoff, or rigid
+    continuum   every region: σ = λ tr ε I + 2μ ε, W = ½ σ:ε; no pore law, nothing rigid
 
 A region is rigid when the materials say so (`model = "rigid"`) or, for bone and nail together,
-when `options.rigid_bone`; a rigid region has no stress and zero energy, and the problem clamps
-its nodes.
+when `options.rigid_bone`; a rigid region has zero stress and zero energy, and the problem
+clamps its nodes.
 """
 
 from __future__ import annotations

@@ -73,8 +73,8 @@ def test_layered_laws_are_the_materials_laws():
     laws = compose_laws(WU2004, ModelOptions(skin_viscoelastic=False), state)
     skin, sub, bone, nail = (laws.regions[r] for r in REGIONS)
     assert all(type(law) is Elastic for law in (skin, sub, bone, nail))
-    np.testing.assert_allclose(_value(skin.stress, state), _hyperfoam_P(WU2004.skin, STRETCH).ravel(),
-                               rtol=1e-12)
+    np.testing.assert_allclose(_value(skin.stress, state),
+                               _hyperfoam_P(WU2004.skin, STRETCH).ravel(), rtol=1e-12)
     np.testing.assert_allclose(_value(sub.stress, state),
                                _hyperfoam_P(WU2004.subcutaneous.solid, STRETCH).ravel(), rtol=1e-12)
     for law, material in ((bone, WU2004.bone), (nail, WU2004.nail)):
