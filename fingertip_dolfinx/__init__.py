@@ -2,8 +2,8 @@
 
 A plane-strain fingertip (skin, subcutaneous tissue, bone, nail) pressed by rigid indenters,
 after Wu et al. (2004). The modules follow the physics, each depending only on those before it:
-geometry -> mesh -> materials -> tissues -> model -> problem -> solver -> scene -> run ->
-outputs / figures -> studies.
+geometry -> mesh -> kinematics -> materials -> tissues -> contact -> model -> problem ->
+solver -> scene -> runner -> outputs / figures -> studies.
 
 The Python API, in the order a study uses it::
 
@@ -52,7 +52,7 @@ _API = {
     "load_indenter": "indenters",
     "RampHold": "loading", "PiecewiseLinear": "loading", "Sinusoid": "loading",
     # the model, the problem and the solver, for those who build their own runs
-    "ModelOptions": "forms", "FingertipProblem": "forms",
+    "ModelOptions": "model", "FingertipProblem": "problem",
     "StepOptions": "solver", "TimeStepper": "solver",
     # errors
     "FingertipError": "errors", "InputError": "errors", "ConvergenceError": "errors",

@@ -22,7 +22,6 @@ from mpi4py import MPI
 from . import __version__
 from .errors import ConvergenceError, InputError
 from .figures import plot_depth_profiles, plot_force_history, plot_surface_profiles
-from .forms import FingertipProblem
 from .mesh import build_mesh, write_xdmf
 from .outputs import (
     DEPTH_COLUMNS,
@@ -36,6 +35,7 @@ from .outputs import (
 )
 from .pictures import field_pictures
 from .post import DerivedFields, FieldArrays, Profiles
+from .problem import FingertipProblem
 from .result import Result
 from .scene import Scene, scene_record
 from .solver import TimeStepper

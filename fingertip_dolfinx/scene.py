@@ -17,10 +17,10 @@ from pathlib import Path
 
 from .datafiles import builtin_dir, find, read_toml
 from .errors import InputError
-from .forms import ModelOptions
 from .geometry import Section, load_section
 from .indenters import Indenter, load_indenter, make_indenter
 from .loading import KINDS, LoadHistory, history_from_dict
+from .model import ModelOptions
 from .solver import StepOptions
 from .tissues import DEFAULT_SET, WU2004, Tissues, load_materials
 from .validation import check_keys

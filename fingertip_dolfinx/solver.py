@@ -46,7 +46,7 @@ _SNES_REASONS = {
 
 
 class Steppable(Protocol):
-    """What the time stepper needs from a problem (forms.FingertipProblem is one)."""
+    """What the time stepper needs from a problem (problem.FingertipProblem is one)."""
 
     residuals: list  # UFL forms, one per unknown
     unknowns: list[fem.Function]

@@ -210,7 +210,7 @@ class ConfinedBlock:
             return f"inverted elements (J = {J_min:.3g})"
         if self.tissue is None:
             return None
-        try:  # the same margin as forms.FingertipProblem
+        try:  # the same margin as problem.FingertipProblem
             mat.check_compaction(J_min, f"block cell near ({where[0]:.3f}, {where[1]:.3f}) mm",
                                  self.tissue.phi0, margin=0.02)
         except CompactionError as e:

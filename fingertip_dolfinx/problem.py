@@ -1,0 +1,347 @@
+r"""The coupled fingertip problem on the tagged mesh: unknowns, residuals, supports and loads.
+
+Unknowns: the displacement u on the whole section (Lagrange degree k, vector) and, when the
+subcutaneous tissue has a pore law (biphasic or undrained), the pore pressure p on the
+subcutaneous region only (degree k − 1 on a submesh: Taylor–Hood where it matters, no pressure
+unknowns in skin, bone or nail). One backward-Euler step solves
+
+    Σ_r ∫_r P_r : Grad v dX − ∫_sub p J F⁻ᵀ : Grad v dX − ∫_pulp p_c n·v dS = 0     for all v,
+    ∫_sub (J − J_n) q + Δt J k(J) C⁻¹ Grad p · Grad q dX                  = 0     for all q,
+
+with P_r the first Piola–Kirchhoff stress of region r's law (model.py: P_skin = F S, S the QLV
+history of the hyperfoam stress; P_sub the drained hyperfoam stress of the solid; bone and nail
+St Venant–Kirchhoff; rigid regions 0) and p_c the Nitsche contact pressure of the rigid
+indenters on the pulp (contact.py). Undrained, the mass balance is ∫_sub (J − J_n) q dX = 0.
+Every boundary not in contact is traction-free; the subcutaneous boundary is impermeable (zero
+flux is the natural condition).
+
+The residual is assembled from named parts: `_region_stresses`, `_pressure`, `_contact`, and
+the `_support`:
+
+Support: the `nail_centre` patch (a short arc at the top of the nail, centred on the point the
+paper fixes) is clamped in x and y. A single fixed point would leave the rigid rotation about
+it free; clamping the short patch of the 170 MPa nail removes it and exerts no force of its
+own: at equilibrium its reaction equals the indenter force, and for a load on the symmetry
+line its moment is zero. If a region is rigid (bone, nail), its nodes are clamped instead and
+hold the body. The reaction is the residual tested with e_y on all clamped dofs.
+
+The admissibility checks of a converged state (inverted elements, compaction) are in
+admissibility.py.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from functools import cached_property
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from dolfinx import mesh as dmesh
+from mpi4py import MPI
+
+from .admissibility import Admissibility, Compaction, from_holder
+from .contact import (
+    TIP_PENETRATION_TOLERANCE,
+    NitscheContact,
+    Obstacle,
+    TipResolutionWarning,
+    check_tip_resolution,
+)
+from .errors import InputError
+from .indenters import Indenter
+from .kinematics import deformation_gradient
+from .loading import History
+from .mesh import FingertipMesh
+from .model import ModelOptions, State, compose_laws
+from .tissues import REGIONS, WU2004, Tissues
+
+#: Points per surface facet at which the deformed pulp is sampled to find a tip's depth.
+TIP_SAMPLES = 9
+#: The tags a fingertip mesh must carry.
+REQUIRED_TAGS = (*REGIONS, "pulp_surface", "nail_centre")
+DEFAULT_OPTIONS = ModelOptions()
+
+
+class FingertipProblem:
+    """Forms, unknowns, supports and loads of the fingertip under rigid indenters.
+
+    `indenters` move together as one rigid holder along `history` (indentation depth, mm,
+    measured from first touch). Implements the `solver.Steppable` protocol.
+    """
+
+    def __init__(
+        self,
+        fmesh: FingertipMesh,
+        indenters: Sequence[Indenter],
+        history: History,
+        tissues: Tissues = WU2004,
+        options: ModelOptions = DEFAULT_OPTIONS,
+    ):
+        if not indenters:
+            raise InputError("scene.indenters", "no indenter given.", "give at least one.")
+        for name in REQUIRED_TAGS:
+            if name not in fmesh.names:
+                raise InputError("mesh", f"the tag {name!r} is missing.", "rebuild the mesh.")
+        self.fmesh, self.history, self.tissues, self.options = fmesh, history, tissues, options
+        self.indenters = list(indenters)
+        self.mesh = msh = fmesh.mesh
+        self.tags = fmesh.names
+        self.dt = fem.Constant(msh, 1.0)
+        self.dx = ufl.Measure("dx", domain=msh, subdomain_data=fmesh.cell_tags,
+                              metadata={"quadrature_degree": options.quadrature_degree})
+        self.ds = ufl.Measure("ds", domain=msh, subdomain_data=fmesh.facet_tags)
+        self.V = fem.functionspace(msh, ("Lagrange", options.displacement_degree, (2,)))
+        self.u = fem.Function(self.V, name="displacement")
+        self.u_n = fem.Function(self.V, name="displacement_n")
+        self.F = deformation_gradient(self.u)
+        cells = {r: fmesh.cell_tags.find(self.tags[r]) for r in REGIONS}
+        self.laws = compose_laws(tissues, options, State(
+            self.u, self.F, self.dt, options.quadrature_degree, cells))
+
+        v = ufl.TestFunction(self.V)
+        R_u = self._region_stresses(v)
+        coupling, residuals_p = self._pressure(v, cells["subcutaneous"])
+        if coupling is not None:
+            R_u += coupling
+        R_u += self._contact(v)
+        self.residuals = [R_u, *residuals_p]
+        self.unknowns = [self.u] + ([self.p] if self.p is not None else [])
+        self.bcs, self._reaction_form = self._support(R_u, v)
+
+        compaction = (None if self.laws.pore is None else Compaction(
+            cells["subcutaneous"], self.laws.pore.phi0, options.compaction_margin))
+        self.admissibility = Admissibility(self.F, msh, options.quadrature_degree, compaction)
+        self._last = [f.x.array.copy() for f in self.unknowns]
+        self.time = 0.0
+
+    # --- the parts of the residual --------------------------------------------------------------
+    def _region_stresses(self, v) -> ufl.Form:
+        """Σ_r ∫_r P_r : Grad v dX over the four regions (a rigid region's P is 0)."""
+        return sum(ufl.inner(law.stress, ufl.grad(v)) * self.dx(self.tags[name])
+                   for name, law in self.laws.regions.items())
+
+    def _pressure(self, v, sub_cells: np.ndarray) -> tuple[ufl.Form | None, list]:
+        """The pore pressure p on the subcutaneous submesh, if the tissue has a pore law:
+        its term −∫_sub p J F⁻ᵀ : Grad v dX in the momentum balance and its own residual."""
+        self.p, self.entity_maps = None, None
+        pore = self.laws.pore
+        if pore is None:
+            return None, []
+        msh = self.mesh
+        submesh, entity_map, _, self.submesh_nodes = dmesh.create_submesh(
+            msh, msh.topology.dim, sub_cells)
+        self.submesh = submesh
+        Q = fem.functionspace(submesh, ("Lagrange", self.options.displacement_degree - 1))
+        self.p = fem.Function(Q, name="pore_pressure")
+        self.entity_maps = [entity_map]
+        dx_sub = self.dx(self.tags["subcutaneous"])
+        F = self.F
+        coupling = -(ufl.inner(self.p * ufl.det(F) * ufl.inv(F).T, ufl.grad(v)) * dx_sub)
+        q = ufl.TestFunction(Q)
+        return coupling, [pore.residual(self.u, self.p, self.u_n, q, self.dt, dx_sub)]
+
+    def _contact(self, v) -> ufl.Form:
+        """The rigid indenters on the pulp: −∫_pulp p_c n·v dS (contact.NitscheContact), with
+        the pulp law's instantaneous elastic stress as the traction estimate."""
+        X_pulp, _ = self.pulp_nodes()
+        self.y_touch = _first_touch(np.concatenate(self.mesh.comm.allgather(X_pulp)),
+                                    self.indenters)
+        self.obstacles = [Obstacle.at(self.mesh, ind, self.y_touch) for ind in self.indenters]
+        pulp, o = self.laws.regions["skin"], self.options
+        self.contact = NitscheContact(
+            self.u, pulp.elastic_stress, self.ds(self.tags["pulp_surface"]), self.obstacles,
+            modulus=pulp.p_wave_modulus, theta=o.contact_theta, gamma0=o.contact_gamma0,
+            method=o.contact, smoothing=o.contact_smoothing,
+        )
+        #: Surface element size (mm) under each indenter's tip; warns if it cannot hold it.
+        self.tip_mesh_sizes = check_tip_resolution(self.contact)
+        self._tip_warned = False
+        return self.contact.residual(v)
+
+    def _support(self, R_u: ufl.Form, v) -> tuple[list, fem.Form]:
+        """Clamp the rigid regions' nodes or, if none is rigid, the nail-centre patch; and the
+        reaction form: R_u tested with e_y on the clamped dofs only."""
+        msh, V = self.mesh, self.V
+        tdim = msh.topology.dim
+        msh.topology.create_connectivity(tdim - 1, tdim)
+        rigid = self.laws.rigid_regions()
+        if rigid:
+            cells = np.concatenate([self.fmesh.cell_tags.find(self.tags[r]) for r in rigid])
+            clamp_dofs = fem.locate_dofs_topological(V, tdim, cells)
+        else:
+            facets = self.fmesh.facet_tags.find(self.tags["nail_centre"])
+            clamp_dofs = fem.locate_dofs_topological(V, tdim - 1, facets)
+        self.clamped_dofs = clamp_dofs
+        w = fem.Function(V)
+        w.x.array.reshape(-1, 2)[clamp_dofs, 1] = 1.0
+        reaction = fem.form(ufl.replace(R_u, {v: w}), entity_maps=self.entity_maps)
+        return [fem.dirichletbc(np.zeros(2), clamp_dofs, V)], reaction
+
+    # --- what the recorder needs ---------------------------------------------------------------
+    @property
+    def qlv(self):
+        """The skin's QLV history (viscoelasticity.QuasiLinearViscoelasticity), or None."""
+        return self.laws.regions["skin"].history
+
+    def state_arrays(self) -> dict[str, np.ndarray]:
+        """The arrays that define the state, by their checkpoint names: u, u_n, p (if any),
+        qlv_h{i} and qlv_S_e_n (if the skin is viscoelastic). They are the live arrays:
+        writing into them sets the state (then scatter_forward the unknowns, mark_accepted)."""
+        arrays = {"u": self.u.x.array, "u_n": self.u_n.x.array}
+        if self.p is not None:
+            arrays["p"] = self.p.x.array
+        return arrays | self.laws.history_arrays()
+
+    def region_energies(self) -> dict[int, ufl.core.expr.Expr]:
+        """Cell-tag value -> that region's own strain energy density (MPa; rigid regions 0)."""
+        return {self.tags[name]: law.energy for name, law in self.laws.regions.items()}
+
+    def pulp_nodes(self) -> tuple[np.ndarray, np.ndarray]:
+        """Reference and current positions of this rank's owned displacement nodes on the pulp."""
+        V = self.V
+        fdim = self.mesh.topology.dim - 1
+        facets = self.fmesh.facet_tags.find(self.tags["pulp_surface"])
+        nodes = fem.locate_dofs_topological(V, fdim, facets)
+        nodes = nodes[nodes < V.dofmap.index_map.size_local]
+        X = V.tabulate_dof_coordinates()[nodes, :2]
+        return X, X + self.u.x.array.reshape(-1, 2)[nodes]
+
+
+    # --- the Steppable protocol ---------------------------------------------------------------
+    def indentation(self, t: float) -> float:
+        return float(self.history(t))
+
+    def set_time(self, t: float) -> None:
+        for obstacle in self.obstacles:
+            obstacle.y_tip.value = self.y_touch + self.indentation(t)
+        self.time = t
+
+    def accept(self) -> None:
+        for law in self.laws.with_history():
+            law.history.advance()
+        self.u_n.x.array[:] = self.u.x.array
+        self._last = [f.x.array.copy() for f in self.unknowns]
+
+    def mark_accepted(self) -> None:
+        """Take the current unknowns as the last accepted state (after loading a checkpoint)."""
+        self._last = [f.x.array.copy() for f in self.unknowns]
+
+    def restore(self) -> None:
+        for f, saved in zip(self.unknowns, self._last):
+            f.x.array[:] = saved
+
+    def min_jacobian(self, cells: np.ndarray | None = None) -> tuple[float, np.ndarray]:
+        """Smallest J at the quadrature points of `cells` (owned cells by default), and where."""
+        return self.admissibility.min_jacobian(cells)
+
+    def inadmissible(self) -> str | None:
+        return self.admissibility.violation()
+
+    def residual_hotspot(self, residual) -> np.ndarray | None:
+        """Reference position (mm) of the displacement node with the largest residual force in
+        `residual` (the solver's last residual vector: per rank, the owned u entries first),
+        or None if the residual is not finite anywhere to compare."""
+        n = self.V.dofmap.index_map.size_local
+        r = residual.getArray(readonly=True)[: 2 * n].reshape(-1, 2)
+        norms = np.linalg.norm(np.nan_to_num(r, nan=np.inf), axis=1)
+        local = float(norms.max()) if len(norms) else -1.0
+        comm = self.mesh.comm
+        largest = comm.allreduce(local, op=MPI.MAX)
+        if not largest > 0:
+            return None
+        return from_holder(comm, local == largest,
+                           lambda: self.V.tabulate_dof_coordinates()[int(np.argmax(norms)), :2])
+
+    def support_reaction(self) -> float:
+        """The y-force (N/mm) the body passes to the clamped dofs (> 0 pushes them +y).
+
+        The residual at the clamped dofs is the force the clamp exerts on the body; the load
+        on the support is its opposite. At equilibrium it equals the indenters' force.
+        """
+        local = fem.assemble_scalar(self._reaction_form)
+        return -self.mesh.comm.allreduce(local, op=MPI.SUM)
+
+    def diagnostics(self) -> dict[str, float]:
+        forces = self.contact.forces()
+        J_min, _ = self.min_jacobian()
+        return {
+            "indentation_mm": self.indentation(self.time),
+            "force_N_per_mm": float(np.sum(forces)),
+            "reaction_N_per_mm": self.support_reaction(),
+            "max_penetration_mm": self.max_penetration(),
+            "min_J": J_min,
+        }
+
+    # --- penetration ----------------------------------------------------------------------------
+    def max_penetration(self) -> float:
+        """Deepest overlap of body and indenters: surface nodes inside an indenter, and the
+        indenter tip inside the body (a sharp tip can slip between the nodes)."""
+        return max(self.contact.max_penetration(), self.tip_penetration())
+
+    def tip_penetration(self) -> float:
+        """How far each indenter's tip lies above the deformed pulp surface (0 if below).
+
+        Near the tip the deformed pulp is a graph y = s(x); the tip pierces the body when its
+        height exceeds s at its x. s is sampled from the displacement field itself at
+        `TIP_SAMPLES` points per surface facet (not interpolated between nodes, whose chords
+        cut into a round indenter by h²/8r and would be mistaken for penetration).
+        """
+        x = self._deformed_pulp()
+        depth = 0.0
+        if self.mesh.comm.rank == 0 and len(x):
+            order = np.argsort(x[:, 0])
+            xs, ys = x[order, 0], x[order, 1]
+            for o in self.obstacles:
+                cx = o.indenter.centre_x
+                if xs[0] <= cx <= xs[-1]:
+                    depth = max(depth, float(o.y_tip.value - np.interp(cx, xs, ys)))
+        depth = max(self.mesh.comm.bcast(depth, root=0), 0.0)
+        tolerance = max(TIP_PENETRATION_TOLERANCE * abs(self.indentation(self.time)), 1e-3)
+        if depth > tolerance and not self._tip_warned:
+            self._tip_warned = True  # once per run
+            warnings.warn(
+                f"at t = {self.time:.4g} s the indenter tip is {depth * 1e3:.3g} µm inside the "
+                f"body (tolerance {tolerance * 1e3:.3g} µm): the surface elements under the tip "
+                f"are {max(self.tip_mesh_sizes):.3g} mm long. Fix: refine the mesh under the tip "
+                "(section.mesh.tips = [x of the tip], tip_size below the tip radius).",
+                TipResolutionWarning, stacklevel=2,
+            )
+        return depth
+
+    @cached_property
+    def _surface_position(self):
+        return self.contact.surface_sampler(ufl.SpatialCoordinate(self.mesh) + self.u,
+                                            TIP_SAMPLES)
+
+    def _deformed_pulp(self) -> np.ndarray:
+        """Current positions of points of the palmar pulp surface (TIP_SAMPLES per facet),
+        gathered on rank 0 (empty elsewhere)."""
+        X, x = self._surface_position()
+        x = x[X[:, 1] < 0]
+        gathered = self.mesh.comm.gather(x, root=0)
+        if self.mesh.comm.rank != 0:
+            return np.zeros((0, 2))
+        return np.concatenate(gathered)
+
+
+def _first_touch(points: np.ndarray, indenters: Sequence[Indenter]) -> float:
+    """The common tip height at which the first indenter touches the surface `points`.
+
+    min over the points of φ(y_tip) decreases with y_tip; bisection finds its zero.
+    """
+    if len(points) == 0:
+        raise InputError("mesh", "the pulp surface has no nodes.", "rebuild the mesh.")
+
+    def clearance(y_tip: float) -> float:
+        return min(float(np.min(ind.signed_distance_np(points, y_tip)[0])) for ind in indenters)
+
+    low = float(points[:, 1].min()) - 50.0  # far below: clear of the body
+    high = float(points[:, 1].max())
+    if clearance(low) <= 0:
+        raise InputError("scene.indenters", "an indenter overlaps the fingertip even far below it.")
+    for _ in range(80):
+        mid = 0.5 * (low + high)
+        low, high = (mid, high) if clearance(mid) > 0 else (low, mid)
+    return low
