@@ -81,6 +81,7 @@ def plot_field(
     window: tuple[tuple[float, float], tuple[float, float]] | None = None,
     field_mesh_nodes: np.ndarray | None = None,
     cmap: str = "viridis",
+    saturate: float | None = None,
 ) -> tuple[float, float] | None:
     """Draw `field` on the section deformed by `u` and write a PNG to `path`. Collective.
 
@@ -99,8 +100,12 @@ def plot_field(
     window: ((xmin, xmax), (ymin, ymax)) in mm; default: the deformed section and the top of
         the indenters.
     cmap: a matplotlib colour map name.
+    saturate: if given (e.g. 0.99), the colour range spans the values between the quantiles
+        1 − saturate and saturate, and values beyond take the end colours (the colour bar
+        says so): fields with a near-singular peak at a sharp tip stay readable elsewhere.
 
-    Returns the colour range (min, max of the drawn values) on rank 0, None on other ranks.
+    Returns the colour range (min, max of the drawn values, or the quantiles) on rank 0, None
+    on other ranks.
     """
     section, own = _pieces(msh, cell_tags, u, field, field_mesh_nodes)
     section_grid = _gather(msh.comm, section)
@@ -109,6 +114,9 @@ def plot_field(
         return None
     values = field_grid.point_data.get("field", field_grid.cell_data.get("field"))
     clim = (float(np.nanmin(values)), float(np.nanmax(values)))
+    if saturate is not None:
+        clim = _area_quantiles(field_grid, (1 - saturate, saturate))
+        label = f"{label}; colours saturate outside {saturate:.1%} of the area"
     if window is None:
         window = _default_window(section_grid.bounds, indenters)
     _render(section_grid, field_grid, clim, indenters, window, Path(path),
@@ -117,6 +125,19 @@ def plot_field(
 
 
 # --- data: values at the geometry nodes, one piece per rank -------------------------------------
+
+
+def _area_quantiles(grid: pv.UnstructuredGrid, qs) -> tuple[float, ...]:
+    """Quantiles of the field over the section's AREA (cell means weighted by cell area):
+    node-counted quantiles would be ruled by the refined zones, where the nodes crowd."""
+    cells = grid.point_data_to_cell_data() if "field" in grid.point_data else grid
+    values = np.asarray(cells.cell_data["field"], dtype=float)
+    area = np.abs(np.asarray(cells.compute_cell_sizes(length=False, volume=False)
+                             .cell_data["Area"]))
+    keep = np.isfinite(values)
+    order = np.argsort(values[keep])
+    cumulative = np.cumsum(area[keep][order]) / area[keep].sum()
+    return tuple(float(values[keep][order][np.searchsorted(cumulative, q)]) for q in qs)
 
 
 def _pieces(msh, cell_tags, u, field, field_mesh_nodes) -> tuple[_Piece, _Piece | None]:

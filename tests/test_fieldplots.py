@@ -174,3 +174,14 @@ def test_rejects_a_field_on_another_mesh(comm, shared_tmp_path):
     f = fem.Function(fem.functionspace(other, ("Lagrange", 1)))
     with pytest.raises(ValueError, match="another mesh"):
         plot_field(msh, tags, u, f, shared_tmp_path / "x.png", label="f")
+
+
+def test_saturated_colours_cover_a_share_of_the_area(comm, shared_tmp_path):
+    """u2 = A x over the 2 × 1 rectangle (the shear keeps areas): a fraction q of the area has
+    x below 2q, so the colour range spans (2(1 − q)A, 2qA), to one cell column (0.125 mm),
+    however the nodes are spread."""
+    msh, tags, u, u2 = _rectangle(comm)
+    clim = plot_field(msh, tags, u, u2, shared_tmp_path / "s.png", label="u2 (mm)",
+                      saturate=0.9)
+    if comm.rank == 0:
+        assert clim == pytest.approx((2 * 0.1 * A, 2 * 0.9 * A), abs=0.125 * A)
