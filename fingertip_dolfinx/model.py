@@ -86,7 +86,6 @@ class ModelOptions:
     contact_gamma0: float = 10.0
     #: A converged state whose subcutaneous J falls below φ0 + margin is rejected.
     compaction_margin: float = 0.02
-    extra: dict = field(default_factory=dict)
 
     def __post_init__(self):
         if self.displacement_degree not in (1, 2, 3):

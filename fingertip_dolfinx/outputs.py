@@ -159,3 +159,63 @@ class Checkpoint:
                     [data[f"previous_{i}"] for i in range(n_unknowns)])
         return CheckpointState(float(data["time"]), float(data["dt"]), int(data["steps"]),
                                previous)
+
+
+class FieldWriters:
+    """Fields over time for ParaView: one VTX (ADIOS2) file per field, `<name><suffix>.bp`,
+    which keeps P2 displacements exact (XDMF would need P1)."""
+
+    def __init__(self, out: Path, comm: MPI.Comm, fields: dict, suffix: str = ""):
+        from dolfinx import io
+
+        self.writers = [io.VTXWriter(comm, Path(out) / f"{name}{suffix}.bp", [f], engine="BP4")
+                        for name, f in fields.items()]
+
+    def write(self, t: float) -> None:
+        for writer in self.writers:
+            writer.write(t)
+
+    def close(self) -> None:
+        for writer in self.writers:
+            writer.close()
+
+
+def run_summary(out: Path, record: dict, mesh_report, dofs: int, ranks: int, *, converged: bool,
+                failure: str | None, wall: float, output_times) -> dict:
+    """summary.json's content, from the run's own history.csv and the scene's record."""
+    import platform
+    import time
+
+    import dolfinx
+
+    from . import __version__
+
+    h = read_csv(Path(out) / "history.csv")
+    times = h.get("time_s", np.zeros(0))
+    force = h.get("force_N_per_mm", np.zeros(0))
+    forces_at = {f"{t:g}": (float(np.interp(t, times, force))
+                            if len(times) and t <= times[-1] + 1e-9 else None)
+                 for t in output_times}
+    r = mesh_report
+    return {
+        "scene": record["name"],
+        "scene_data": record,
+        "materials": record["materials"],
+        "model": record["model"],
+        "versions": {"fingertip_dolfinx": __version__, "dolfinx": dolfinx.__version__,
+                     "python": platform.python_version()},
+        "mpi_ranks": ranks,
+        "mesh": {"cells": r.num_cells, "cell_type": r.cell_type, "min_edge_mm": r.min_edge,
+                 "max_edge_mm": r.max_edge, "min_quality": r.min_quality},
+        "dofs": dofs,
+        "time_steps": len(times),
+        "newton_iterations": int(np.nansum(h.get("newton_iterations", [0]))),
+        "wall_time_s": wall,
+        "converged": converged,
+        "failure": failure,
+        "end_time_s": float(times[-1]) if len(times) else 0.0,
+        "peak_force_N_per_mm": float(np.max(force)) if len(force) else None,
+        "max_penetration_mm": float(np.max(h["max_penetration_mm"])) if len(times) else None,
+        "force_at_output_times_N_per_mm": forces_at,
+        "written": time.strftime("%Y-%m-%dT%H:%M:%S"),
+    }

@@ -10,16 +10,13 @@ the figures. `run_scene` returns a `Result` (result.py) that holds all of it as 
 from __future__ import annotations
 
 import dataclasses
-import platform
 import time
 import warnings
 from pathlib import Path
 
 import numpy as np
-from dolfinx import io
 from mpi4py import MPI
 
-from . import __version__
 from .errors import ConvergenceError, InputError
 from .figures import plot_depth_profiles, plot_force_history, plot_surface_profiles
 from .mesh import build_mesh, write_xdmf
@@ -29,8 +26,10 @@ from .outputs import (
     SURFACE_COLUMNS,
     Checkpoint,
     CsvLog,
+    FieldWriters,
     prepare_directory,
     read_csv,
+    run_summary,
     write_json,
 )
 from .pictures import field_pictures
@@ -118,7 +117,8 @@ class Run:
                                      self.problem.region_energies())
         self.profiles = Profiles(self.problem, self.derived, scene.section.outer, scene.outputs)
         self.arrays = FieldArrays(self.problem, self.derived)
-        self.writers = self._field_writers(resume)
+        self.fields = FieldWriters(self.out, comm, self._vtx_fields(),
+                                   suffix=f"-from-{self.start_time:g}s" if resume else "")
         self._last_state = (self.start_time, [f.x.array.copy() for f in self.problem.unknowns])
         self.step_count = self.steps_before
         self._bar = None
@@ -137,15 +137,13 @@ class Run:
         return dataclasses.replace(steps, dt_initial=min(max(state.dt, steps.dt_min),
                                                          steps.dt_max))
 
-    def _field_writers(self, resume: bool) -> list[io.VTXWriter]:
+    def _vtx_fields(self) -> dict:
         p = self.problem
-        suffix = f"-from-{self.start_time:g}s" if resume else ""
-        fields = [("displacement", p.u), ("log_strain", self.derived.log_strain),
-                  ("strain_energy_density", self.derived.sed)]
+        fields = {"displacement": p.u, "log_strain": self.derived.log_strain,
+                  "strain_energy_density": self.derived.sed}
         if p.p is not None:
-            fields.append(("pore_pressure", p.p))
-        return [io.VTXWriter(self.comm, self.out / f"{name}{suffix}.bp", [f], engine="BP4")
-                for name, f in fields]
+            fields["pore_pressure"] = p.p
+        return fields
 
     # --- stepping --------------------------------------------------------------------------
     def run(self) -> None:
@@ -179,8 +177,7 @@ class Run:
         at_output = any(abs(report.time - t) < 1e-9 for t in self.scene.output_times)
         if at_output or self.step_count % self.scene.field_every == 0:
             self.derived.update()
-            for writer in self.writers:
-                writer.write(report.time)
+            self.fields.write(report.time)
         if at_output:
             self._write_output_time(report.time)
         self._save_checkpoint(report)
@@ -213,13 +210,14 @@ class Run:
         """Close every file, write summary.json and draw the figures; returns the summary."""
         for log in (self.history, self.surface, self.depth):
             log.close()
-        for writer in self.writers:
-            writer.close()
+        self.fields.close()
         self.stepper.close()
         self.comm.barrier()
         summary = None
         if self.comm.rank == 0:
-            summary = self._summary(converged, failure, wall)
+            summary = run_summary(self.out, scene_record(self.scene), self.fm.report, self.dofs,
+                                  self.comm.size, converged=converged, failure=failure,
+                                  wall=wall, output_times=self.scene.output_times)
             _figures(self.out, self.scene.name)
         summary = self.comm.bcast(summary, root=0)
         write_json(self.out / "summary.json", summary, self.comm)
@@ -229,40 +227,6 @@ class Run:
                           f"force {summary['peak_force_N_per_mm']:g} N/mm).", NoContactWarning,
                           stacklevel=2)
         return summary
-
-    def _summary(self, converged: bool, failure: str | None, wall: float) -> dict:
-        import dolfinx
-
-        h = read_csv(self.out / "history.csv")
-        times = h.get("time_s", np.zeros(0))
-        force = h.get("force_N_per_mm", np.zeros(0))
-        forces_at = {f"{t:g}": (float(np.interp(t, times, force))
-                                if len(times) and t <= times[-1] + 1e-9 else None)
-                     for t in self.scene.output_times}
-        r = self.fm.report
-        record = scene_record(self.scene)
-        return {
-            "scene": self.scene.name,
-            "scene_data": record,
-            "materials": record["materials"],
-            "model": record["model"],
-            "versions": {"fingertip_dolfinx": __version__, "dolfinx": dolfinx.__version__,
-                         "python": platform.python_version()},
-            "mpi_ranks": self.comm.size,
-            "mesh": {"cells": r.num_cells, "cell_type": r.cell_type, "min_edge_mm": r.min_edge,
-                     "max_edge_mm": r.max_edge, "min_quality": r.min_quality},
-            "dofs": self.dofs,
-            "time_steps": len(times),
-            "newton_iterations": int(np.nansum(h.get("newton_iterations", [0]))),
-            "wall_time_s": wall,
-            "converged": converged,
-            "failure": failure,
-            "end_time_s": float(times[-1]) if len(times) else 0.0,
-            "peak_force_N_per_mm": float(np.max(force)) if len(force) else None,
-            "max_penetration_mm": float(np.max(h["max_penetration_mm"])) if len(times) else None,
-            "force_at_output_times_N_per_mm": forces_at,
-            "written": time.strftime("%Y-%m-%dT%H:%M:%S"),
-        }
 
 
 def check_reach(problem, scene: Scene) -> None:

@@ -215,7 +215,7 @@ def scene_from_dict(data: dict, where: str = "scene") -> Scene:
         indenters=indenters,
         history=history_from_dict(data.get("protocol", {}), where=f"{where}: protocol"),
         materials=_materials(data.get("materials", {}), f"{where}: materials"),
-        model=_options(ModelOptions, data.get("model", {}), f"{where}: model", ("extra",)),
+        model=_options(ModelOptions, data.get("model", {}), f"{where}: model"),
         steps=_options(StepOptions, data.get("steps", {}), f"{where}: steps"),
         petsc_options=dict(data.get("solver", {})),
         outputs=_options(Outputs, data.get("output", {}), f"{where}: output"),
@@ -258,10 +258,9 @@ def _materials(data: Mapping, where: str) -> Tissues:
     return load_materials(data.pop("set", DEFAULT_SET), overrides=data)
 
 
-def _options(cls, data: Mapping, where: str, hidden: tuple[str, ...] = ()):
+def _options(cls, data: Mapping, where: str):
     """An options dataclass from a table: unknown keys and impossible values named."""
-    check_keys(where, data, [f.name for f in dataclasses.fields(cls) if f.name not in hidden],
-               what="option")
+    check_keys(where, data, [f.name for f in dataclasses.fields(cls)], what="option")
     try:
         return cls(**data)
     except InputError as error:
@@ -285,7 +284,7 @@ def scene_record(scene: Scene) -> dict:
         "materials": scene.materials.record(),
         "protocol": {"kind": kind, **{f.name: getattr(history, f.name)
                                       for f in dataclasses.fields(history) if f.init}},
-        "model": {k: v for k, v in dataclasses.asdict(scene.model).items() if k != "extra"},
+        "model": dataclasses.asdict(scene.model),
         "steps": dataclasses.asdict(scene.steps),
         "solver": scene.petsc_options,
         "output": dataclasses.asdict(scene.outputs),

@@ -1,0 +1,51 @@
+"""The layout shows the physics: every module imports only modules above it in the chain of
+docs/DESIGN.md (geometry -> mesh -> materials -> ... -> runner -> studies), so data flows one
+way and there are no import cycles. The test reads the chain from the document itself."""
+
+import ast
+import re
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parents[1] / "fingertip_dolfinx"
+DESIGN = PACKAGE.parent / "docs" / "DESIGN.md"
+
+
+def _chain() -> dict[str, int]:
+    """Module -> its row in DESIGN.md's table (modules named in one row share it)."""
+    text = DESIGN.read_text().split("## The chain of modules", 1)[1].split("\n## ", 1)[0]
+    rank = {}
+    for row, line in enumerate(l for l in text.splitlines() if l.startswith("| `")):
+        for name in re.findall(r"`([a-z_/]+)`", line.split("|")[1]):
+            rank[name.rstrip("/")] = row
+    return rank
+
+
+def _imports(path: Path) -> set[str]:
+    """The package modules `path` imports (relative imports, first component)."""
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom) and node.level > 0:
+            inside_studies = path.parent.name == "studies"
+            if inside_studies and node.level == 1:
+                continue  # a study importing its sibling
+            names.add((node.module or "").split(".")[0] or node.names[0].name)
+    return names - {"__version__"}
+
+
+def test_every_module_is_in_the_chain():
+    rank = _chain()
+    modules = {p.stem for p in PACKAGE.glob("*.py")} - {"__init__"}
+    assert modules <= set(rank), f"not in docs/DESIGN.md: {sorted(modules - set(rank))}"
+
+
+def test_modules_import_only_modules_above_them():
+    rank = _chain()
+    wrong = []
+    for path in [*PACKAGE.glob("*.py"), *(PACKAGE / "studies").glob("*.py")]:
+        me = "studies" if path.parent.name == "studies" else path.stem
+        if me == "__init__":
+            continue
+        for name in _imports(path):
+            if rank[name] > rank[me]:
+                wrong.append(f"{path.relative_to(PACKAGE)} imports {name}")
+    assert not wrong, wrong
