@@ -35,6 +35,16 @@ from matplotlib.ticker import MaxNLocator
 
 from .indenters import Indenter
 
+# Off-screen rendering needs no display: VTK first tries X, fails, says so on stderr at every
+# render ("bad X server connection"), then renders off-screen anyway. Keep its errors only.
+pv.OFF_SCREEN = True
+try:
+    from vtkmodules.vtkCommonCore import vtkLogger
+
+    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
+except ImportError:  # an older VTK without vtkLogger: the warning stays, harmlessly
+    pass
+
 #: Picture size in pixels (width, height).
 WINDOW_SIZE = (1600, 1200)
 #: Share of the picture's height given to the colour bar below the section.
