@@ -35,7 +35,7 @@ def find(kind: str, source: str | Path, what: str) -> Path:
     `what` names the input in the error ("scene", "section", ...).
     """
     path = Path(source)
-    if path.suffix != ".toml" and not path.exists():
+    if path.suffix != ".toml" and not path.is_file():  # a folder named like one is not it
         path = builtin_dir(kind) / f"{source}.toml"
     if not path.is_file():
         raise InputError(

@@ -5,9 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import matplotlib
-
-matplotlib.use("Agg")  # file output only: no display on clusters and CI
-import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.figure import Figure  # no pyplot: no backend is chosen, none is changed
 import numpy as np  # noqa: E402
 from dolfinx.mesh import CellType, entities_to_geometry  # noqa: E402
 from matplotlib.collections import LineCollection, PolyCollection  # noqa: E402
@@ -58,7 +56,8 @@ def plot_tagged_mesh(fm: FingertipMesh, path: str | Path, title: str | None = No
 
     region_of = {tag: name for name, tag in CELL_TAGS.items()}
     facet_of = {tag: name for name, tag in FACET_TAGS.items()}
-    fig, axes = plt.subplots(1, 2, figsize=(12.5, 5.4), width_ratios=[1.15, 1])
+    fig = Figure(figsize=(12.5, 5.4))
+    axes = fig.subplots(1, 2, width_ratios=[1.15, 1])
     for ax in axes:
         ax.add_collection(PolyCollection(
             cells, facecolors=[REGION_COLOURS[region_of[v]] for v in cell_values],
@@ -95,7 +94,6 @@ def plot_tagged_mesh(fm: FingertipMesh, path: str | Path, title: str | None = No
     fig.tight_layout(rect=(0, 0, 0.8, 1))
     path = Path(path)
     fig.savefig(path, dpi=150)
-    plt.close(fig)
     return path
 
 
@@ -105,7 +103,8 @@ def plot_tagged_mesh(fm: FingertipMesh, path: str | Path, title: str | None = No
 
 def plot_force_history(history: dict, path: Path, title: str = "") -> None:
     """Indenter displacement and force per unit length against time (cf. the paper's Fig. 3)."""
-    fig, (ax_d, ax_f) = plt.subplots(2, 1, figsize=(6.4, 6.0), sharex=True)
+    fig = Figure(figsize=(6.4, 6.0))
+    (ax_d, ax_f) = fig.subplots(2, 1, sharex=True)
     t = np.concatenate([[0.0], history["time_s"]])
     ax_d.plot(t, np.concatenate([[0.0], history["indenter_displacement_mm"]]), "k-")
     ax_d.set_ylabel("indentation (mm)")
@@ -120,12 +119,12 @@ def plot_force_history(history: dict, path: Path, title: str = "") -> None:
         ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=150)
-    plt.close(fig)
 
 
 def plot_surface_profiles(profile: dict, path: Path, title: str = "") -> None:
     """Deflection of the pulp surface along x at each output time (cf. the paper's Fig. 2)."""
-    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    fig = Figure(figsize=(6.4, 4.0))
+    ax = fig.subplots()
     for t in np.unique(profile["time_s"]):
         rows = profile["time_s"] == t
         order = np.argsort(profile["x_mm"][rows])
@@ -138,7 +137,6 @@ def plot_surface_profiles(profile: dict, path: Path, title: str = "") -> None:
     ax.legend()
     fig.tight_layout()
     fig.savefig(path, dpi=150)
-    plt.close(fig)
 
 
 DEPTH_QUANTITIES = (("e_max", "max principal log strain"), ("e_min", "min principal log strain"),
@@ -147,7 +145,8 @@ DEPTH_QUANTITIES = (("e_max", "max principal log strain"), ("e_min", "min princi
 
 def plot_depth_profiles(depth: dict, path: Path, time_s: float, title: str = "") -> None:
     """Strains and SED along the curves at fixed depths (cf. the paper's Fig. 5)."""
-    fig, axes = plt.subplots(2, 2, figsize=(9.6, 6.4), sharex=True)
+    fig = Figure(figsize=(9.6, 6.4))
+    axes = fig.subplots(2, 2, sharex=True)
     at_time = np.isclose(depth["time_s"], time_s)
     for ax, (key, label) in zip(axes.ravel(), DEPTH_QUANTITIES):
         for d in np.unique(depth["depth_mm"][at_time]):
@@ -161,7 +160,6 @@ def plot_depth_profiles(depth: dict, path: Path, time_s: float, title: str = "")
     fig.suptitle(f"{title} (t = {time_s:g} s)")
     fig.tight_layout()
     fig.savefig(path, dpi=150)
-    plt.close(fig)
 
 
 #: The paper's Figs 7-8: strains in x/y, shear strain and SED at one depth, per bar spacing.
@@ -173,8 +171,9 @@ def plot_spacing_profiles(runs: dict[float, dict], path: Path, time_s: float, de
                           title: str = "") -> None:
     """One curve per bar spacing d (`runs[d]` = that run's depth_profiles.csv columns) at the
     depth `depth_mm` and time `time_s`; the bar centres ±d/2 are marked (cf. Figs 7-8)."""
-    fig, axes = plt.subplots(2, 2, figsize=(9.6, 6.4), sharex=True)
-    colours = plt.cm.viridis(np.linspace(0.0, 0.9, len(runs)))
+    fig = Figure(figsize=(9.6, 6.4))
+    axes = fig.subplots(2, 2, sharex=True)
+    colours = matplotlib.colormaps["viridis"](np.linspace(0.0, 0.9, len(runs)))
     for colour, (d, depth) in zip(colours, sorted(runs.items(), reverse=True)):
         rows = np.isclose(depth["time_s"], time_s) & np.isclose(depth["depth_mm"], depth_mm)
         order = np.argsort(depth["x_mm"][rows])
@@ -192,4 +191,3 @@ def plot_spacing_profiles(runs: dict[float, dict], path: Path, time_s: float, de
     fig.suptitle(f"{title} at depth {depth_mm:g} mm, t = {time_s:g} s")
     fig.tight_layout()
     fig.savefig(path, dpi=150)
-    plt.close(fig)

@@ -189,7 +189,8 @@ class Run:
         arrays = self.arrays()  # updates the derived fields
         if self.comm.rank == 0:
             np.savez_compressed(self.out / f"fields_t{t:g}s.npz", time=t, **arrays)
-        field_pictures(self.problem, self.derived, self.out, t, self.scene.name)
+        if self.scene.outputs.pictures:
+            field_pictures(self.problem, self.derived, self.out, t, self.scene.name)
 
     def _save_checkpoint(self, report) -> None:
         self.checkpoint.save(report.time, report.next_dt, self.step_count,
@@ -218,7 +219,8 @@ class Run:
             summary = run_summary(self.out, scene_record(self.scene), self.fm.report, self.dofs,
                                   self.comm.size, converged=converged, failure=failure,
                                   wall=wall, output_times=self.scene.output_times)
-            _figures(self.out, self.scene.name)
+            if self.scene.outputs.pictures:
+                _figures(self.out, self.scene.name)
         summary = self.comm.bcast(summary, root=0)
         write_json(self.out / "summary.json", summary, self.comm)
         if converged and summary["peak_force_N_per_mm"] is not None and not (

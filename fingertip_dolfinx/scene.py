@@ -35,15 +35,19 @@ TABLES = ("name", "description", "section", "spacing", "indenters", "materials",
 class Outputs:
     """What a run writes besides its history: profiles and pictures at `times` (s), along
     curves at `depths` (mm below the undeformed outer surface) over |x| <= profile_half_width,
-    sampled at `profile_points`; fields for ParaView every `field_every` steps."""
+    sampled at `profile_points`; fields for ParaView every `field_every` steps; `pictures =
+    false` skips the PNG figures (a sweep of many runs may want only the numbers)."""
 
     times: tuple[float, ...] = ()
     depths: tuple[float, ...] = (0.5, 0.75, 1.0)
     profile_half_width: float = 6.0
     profile_points: int = 241
     field_every: int = 1
+    pictures: bool = True
 
     def __post_init__(self):
+        if not isinstance(self.pictures, bool):
+            raise InputError("output.pictures", f"got {self.pictures!r}.", "use true or false.")
         object.__setattr__(self, "times", tuple(float(t) for t in self.times))
         object.__setattr__(self, "depths", tuple(float(d) for d in self.depths))
         if any(d <= 0 for d in self.depths):

@@ -118,12 +118,10 @@ def run_sweep(scene_name: str, spacings, out: Path, overrides=(), progress=True)
 
 
 def _plot(spacings, table, path, threshold_mm):
-    import matplotlib
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    fig = Figure(figsize=(6.4, 4.2))
+    ax = fig.subplots()
     order = np.argsort(spacings)
     for q in QUANTITIES:
         ax.plot(spacings[order], np.asarray(table[q])[order], "o-", label=q)
@@ -135,4 +133,3 @@ def _plot(spacings, table, path, threshold_mm):
     ax.legend()
     fig.tight_layout()
     fig.savefig(path, dpi=150)
-    plt.close(fig)

@@ -184,3 +184,14 @@ def test_shear_variation_is_the_peak_to_peak_around_each_point():
         1.0, abs=1e-6)
     assert normalized_variation(base | {"e12": 0.1 * x}, d, 1.0, 0.75)["e12"] == pytest.approx(
         0.0, abs=1e-12)
+
+
+def test_a_run_without_pictures_writes_the_numbers_only(tmp_path, monkeypatch):
+    """`output.pictures = false` (sweeps of many runs): every table, no PNG; and a folder in
+    the working directory named like a built-in scene does not hide the scene."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "1pt").mkdir()
+    run_scene(_one_point(["output.pictures=false", "protocol.depth=0.2"]), tmp_path / "1pt",
+              progress=False, comm=MPI.COMM_SELF)
+    assert (tmp_path / "1pt" / "depth_profiles.csv").exists()
+    assert not list((tmp_path / "1pt").glob("*.png"))

@@ -499,13 +499,11 @@ def _write(result: dict, out: Path):
 
 
 def _chart(result: dict, path: Path):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
     rows = [r for r in result["rows"] if r["converged"]]
-    fig, ax = plt.subplots(figsize=(7.2, 4.8))
+    fig = Figure(figsize=(7.2, 4.8))
+    ax = fig.subplots()
     floor = 1e-6
     for name in dict.fromkeys(r["family"] for r in rows):
         seq = [r for r in rows if r["family"] == name]
@@ -549,4 +547,3 @@ def _chart(result: dict, path: Path):
     ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=150)
-    plt.close(fig)

@@ -128,12 +128,10 @@ def _write(rows, out: Path, scene_name: str):
     lines += ["", *(f"- {r['model']} failed: {r['failure']}" for r in rows if r.get("failure"))]
     (out / "fidelity.md").write_text("\n".join(lines) + "\n")
 
-    import matplotlib
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    fig = Figure(figsize=(6.4, 4.2))
+    ax = fig.subplots()
     for r in rows:
         if r.get("failure"):
             continue
@@ -147,4 +145,3 @@ def _write(rows, out: Path, scene_name: str):
     ax.grid(alpha=0.3, which="both")
     fig.tight_layout()
     fig.savefig(out / "fidelity.png", dpi=150)
-    plt.close(fig)

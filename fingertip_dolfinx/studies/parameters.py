@@ -90,12 +90,10 @@ def _write(rows: list[dict], out: Path) -> None:
 
 
 def _plot(out: Path, labels: list[str], key: str) -> None:
-    import matplotlib
+    from matplotlib.figure import Figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    fig = Figure(figsize=(6.4, 4.2))
+    ax = fig.subplots()
     for label in labels:
         h = read_csv(out / label / "history.csv")
         ax.plot(h["time_s"], h["force_N_per_mm"], "-", label=label)
@@ -107,7 +105,6 @@ def _plot(out: Path, labels: list[str], key: str) -> None:
     ax.legend()
     fig.tight_layout()
     fig.savefig(out / "sweep.png", dpi=150)
-    plt.close(fig)
 
 
 def force_table(result: dict) -> np.ndarray:

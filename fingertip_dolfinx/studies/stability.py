@@ -555,15 +555,13 @@ def write_markdown(rows: list[dict], path: Path, runtimes: dict | None = None) -
 
 
 def _figures(out: Path, rows: list[dict], profiles1: dict, profiles4: dict) -> list[Path]:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
     written = []
     # case 1: pressure along the mid-height row
     if profiles1:
-        fig, ax = plt.subplots(figsize=(6, 3.5))
+        fig = Figure(figsize=(6, 3.5))
+        ax = fig.subplots()
         for method, (X, p, sigma0) in profiles1.items():
             row = np.isclose(X[:, 1], 0.5)
             order = np.argsort(X[row, 0])
@@ -574,11 +572,11 @@ def _figures(out: Path, rows: list[dict], profiles1: dict, profiles4: dict) -> l
         fig.tight_layout()
         written.append(out / "stability_p1p1_vs_taylor_hood.png")
         fig.savefig(written[-1], dpi=120)
-        plt.close(fig)
     # case 2: penetration and iterations against γ0
     r2 = [r for r in rows if r["case"].startswith("2")]
     if r2:
-        fig, (a1, a2) = plt.subplots(1, 2, figsize=(9, 3.5))
+        fig = Figure(figsize=(9, 3.5))
+        (a1, a2) = fig.subplots(1, 2)
         for method in dict.fromkeys(r["method"] for r in r2):
             rs = [r for r in r2 if r["method"] == method]
             g = [r["value"] for r in rs]
@@ -597,11 +595,11 @@ def _figures(out: Path, rows: list[dict], profiles1: dict, profiles4: dict) -> l
         fig.tight_layout()
         written.append(out / "stability_nitsche.png")
         fig.savefig(written[-1], dpi=120)
-        plt.close(fig)
     # case 4: overshoot against Δt, bound marked; profiles
     r4 = [r for r in rows if r["case"].startswith("4")]
     if r4:
-        fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 3.8))
+        fig = Figure(figsize=(10, 3.8))
+        (a1, a2) = fig.subplots(1, 2)
         for method in dict.fromkeys(r["method"] for r in r4):
             rs = [r for r in r4 if r["method"] == method]
             a1.loglog([r["value"] for r in rs], [max(r["overshoot_vs_exact"], 1e-6) for r in rs],
@@ -620,7 +618,6 @@ def _figures(out: Path, rows: list[dict], profiles1: dict, profiles4: dict) -> l
         fig.tight_layout()
         written.append(out / "stability_time_step.png")
         fig.savefig(written[-1], dpi=120)
-        plt.close(fig)
     return written
 
 
