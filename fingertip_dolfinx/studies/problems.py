@@ -31,8 +31,8 @@ from dolfinx.fem.petsc import NonlinearProblem
 from mpi4py import MPI
 
 from .. import materials as mat
+from ..admissibility import Admissibility, Compaction
 from ..contact import NitscheContact, Obstacle, p_wave_modulus
-from ..errors import CompactionError
 from ..indenters import Cylinder
 from ..kinematics import deformation_gradient
 from ..poroelasticity import biphasic_residuals
@@ -109,12 +109,14 @@ class ConfinedBlock:
     from `poroelasticity`; the top drained, p = 0, if `drained_top`, every other boundary
     impermeable), else the hyperelastic `solid`; `prony` makes the solid's stress quasi-linear
     viscoelastic. Displacement degree `degree_u`: 2 with the P1 pressure is Taylor–Hood, 1 the
-    equal-order pair that fails the inf-sup condition.
+    equal-order pair that fails the inf-sup condition. A tissue is guarded against compaction
+    as the fingertip's is (`admissibility`): J ≤ φ0 + `compaction_margin` at a quadrature point
+    or a node stops the time stepper with a `CompactionError`.
     """
 
     def __init__(self, nx, ny, load, *, tissue=None, solid=None, prony=None, degree_u=2,
                  width=1.0, H=1.0, load_width=None, drained_top=False, top_displacement=False,
-                 diagonal="right", comm=MPI.COMM_SELF):
+                 diagonal="right", compaction_margin=0.02, comm=MPI.COMM_SELF):
         self.msh = mesh.create_rectangle(comm, [[0.0, 0.0], [width, H]], [nx, ny],
                                          diagonal=getattr(mesh.DiagonalType, diagonal))
         self.W, self.H, self.load, self.tissue = width, H, load, tissue
@@ -136,10 +138,11 @@ class ConfinedBlock:
         self.bcs = self._bcs(drained_top)
         self.entity_maps = None
         self._last = [f.x.array.copy() for f in self.unknowns]
-        # J at each cell's centroid and vertices: with P2 displacements J varies over a cell,
-        # and its extremes (inversion, compaction) are usually at the corners
-        points = np.array([[1 / 3, 1 / 3], [0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
-        self._J = fem.Expression(ufl.det(F), points)
+        cells = np.arange(self.msh.topology.index_map(2).size_local, dtype=np.int32)
+        self.admissibility = Admissibility(F, self.msh, QUADRATURE_DEGREE, None if tissue is None
+                                           else Compaction(cells, tissue.phi0, compaction_margin,
+                                                           tissue.permeability.k0))
+        self._J = fem.Expression(ufl.det(F), np.array([[1 / 3, 1 / 3]]))  # at the centroids
         self._settle = fem.form(-self.u[1] * self.ds(1))
 
     def _top_facets(self) -> np.ndarray:
@@ -204,18 +207,12 @@ class ConfinedBlock:
             f.x.array[:] = saved
 
     def inadmissible(self) -> str | None:
-        """Inverted cells, or a tissue within 0.02 of compaction (J = φ0)."""
-        J_min, where = self.min_jacobian()
-        if not np.isfinite(J_min) or J_min <= 0:
-            return f"inverted elements (J = {J_min:.3g})"
-        if self.tissue is None:
-            return None
-        try:  # the same margin as problem.FingertipProblem
-            mat.check_compaction(J_min, f"block cell near ({where[0]:.3f}, {where[1]:.3f}) mm",
-                                 self.tissue.phi0, margin=0.02)
-        except CompactionError as e:
-            return str(e)
-        return None
+        """Inverted cells, or a tissue within the margin of compaction (J = φ0)."""
+        return self.admissibility.violation()
+
+    def compacted(self, margin: float | None = None, nodes: bool = True):
+        """The tissue's lowest J if within `margin` (the block's by default) of φ0, else None."""
+        return self.admissibility.compacted(margin, nodes)
 
     def diagnostics(self) -> dict[str, float]:
         out = {"settlement": self.settlement(), "J_min": self.min_jacobian()[0],
@@ -242,25 +239,21 @@ class ConfinedBlock:
         return self.msh.comm.allreduce(fem.assemble_scalar(self._reaction_form))
 
     def _jacobians(self) -> tuple[np.ndarray, np.ndarray]:
-        """J at the owned cells' centroids and vertices (a row per cell), the cells' centres."""
+        """J at the owned cells' centroids, and the cells' centres."""
         n = self.msh.topology.index_map(2).size_local
         cells = np.arange(n, dtype=np.int32)
         centres = self.msh.geometry.x[self.msh.geometry.dofmaps[0][cells]].mean(axis=1)
-        return self._J.eval(self.msh, cells).reshape(n, -1), centres
+        return self._J.eval(self.msh, cells).reshape(n), centres
 
     def min_jacobian(self) -> tuple[float, np.ndarray]:
-        """The smallest J over every rank, and the centre of a cell reaching it (mm)."""
-        J, centres = self._jacobians()
-        with np.errstate(invalid="ignore"):
-            worst = int(np.nanargmin(J.min(axis=1))) if np.isfinite(J).any() else 0
-        J_min, *where = self.msh.comm.allreduce((float(np.min(J)), *centres[worst]), op=MPI.MIN)
-        return J_min, np.array(where)
+        """The smallest J at the quadrature points and vertices over every rank, and where."""
+        return self.admissibility.min_jacobian()
 
     def max_J_change(self, below: float) -> float:
         """max |J − 1| at the centroids of the cells whose centre lies below y = `below`
         (every rank): the volume change away from a drained top's boundary layer."""
         J, centres = self._jacobians()
-        local = float(np.max(np.abs(J[centres[:, 1] < below, 0] - 1), initial=0.0))
+        local = float(np.max(np.abs(J[centres[:, 1] < below] - 1), initial=0.0))
         return self.msh.comm.allreduce(local, op=MPI.MAX)
 
     def pressure_nodes(self) -> tuple[np.ndarray, np.ndarray]:
