@@ -20,8 +20,12 @@ class ConvergenceError(FingertipError, RuntimeError):
     """A time step could not be solved even after repeated step cuts."""
 
 
-class CompactionError(FingertipError, RuntimeError):
-    """The porous solid would be compressed to (or below) its solid volume fraction."""
+class CompactionError(ConvergenceError):
+    """The porous solid would be compressed to (or below) its solid volume fraction.
+
+    A physical limit, not a numerical failure: the load is too fast or too large for the
+    permeability, and smaller time steps cannot help. A `ConvergenceError`, so that a run
+    that ends on it saves its results up to the last good step like any failed run."""
 
 
 class MaterialInstabilityError(FingertipError, RuntimeError):

@@ -444,14 +444,17 @@ def check_compaction(J_min: float, where: str, phi0: float, margin: float = 0.0)
     """Raise CompactionError if the smallest volume ratio reached the solid fraction φ0.
 
     `where` names the location (region, point). At J = φ0 all pores are closed and the
-    permeability (and the mixture) is undefined; the solver calls this after each step.
+    permeability (and the mixture) is undefined. A physical limit: the fix is in the load or
+    the tissue, not in the time step. (The time stepper's own check, with the time and the
+    place, is `admissibility.Admissibility.compacted`.)
     """
     if not J_min > phi0 + margin:
         raise CompactionError(
-            f"{where}: compaction: the volume ratio J reached {J_min:.4g}, at or below the solid volume "
-            f"fraction phi0 = {phi0:g}{f' (+ margin {margin:g})' if margin else ''}: the porous "
-            "solid cannot be compressed beyond its solid volume. Fix: use smaller time steps "
-            "or less indentation (or check the permeability parameters).")
+            f"{where}: compaction: the volume ratio J reached {J_min:.4g}, at or below the solid "
+            f"volume fraction phi0 = {phi0:g}{f' (+ margin {margin:g})' if margin else ''}: the "
+            "porous solid cannot be compressed beyond its solid volume. Fix: load more slowly "
+            "or less deeply, or check the permeability parameters; smaller time steps cannot "
+            "help.")
 
 
 # --------------------------------------------------------------------------------------------

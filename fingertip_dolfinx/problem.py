@@ -110,8 +110,11 @@ class FingertipProblem:
         self.unknowns = [self.u] + ([self.p] if self.p is not None else [])
         self.bcs, self._reaction_form = self._support(R_u, v)
 
-        compaction = (None if self.laws.pore is None else Compaction(
-            cells["subcutaneous"], self.laws.pore.phi0, options.compaction_margin))
+        pore = self.laws.pore
+        material = getattr(pore, "material", None)  # the biphasic law's (no flow: None)
+        compaction = (None if pore is None else Compaction(
+            cells["subcutaneous"], pore.phi0, options.compaction_margin,
+            None if material is None else material.permeability.k0))
         self.admissibility = Admissibility(self.F, msh, options.quadrature_degree, compaction)
         self._last = [f.x.array.copy() for f in self.unknowns]
         self.time = 0.0
@@ -233,11 +236,17 @@ class FingertipProblem:
             f.x.array[:] = saved
 
     def min_jacobian(self, cells: np.ndarray | None = None) -> tuple[float, np.ndarray]:
-        """Smallest J at the quadrature points of `cells` (owned cells by default), and where."""
+        """Smallest J at the quadrature points and vertices of `cells` (owned cells by
+        default), and where."""
         return self.admissibility.min_jacobian(cells)
 
     def inadmissible(self) -> str | None:
         return self.admissibility.violation()
+
+    def compacted(self, margin: float | None = None, nodes: bool = True):
+        """The subcutaneous tissue's lowest J if within `margin` (the options' by default) of
+        its solid fraction (admissibility.Compacted), else None: the solver stops on it."""
+        return self.admissibility.compacted(margin, nodes)
 
     def residual_hotspot(self, residual) -> np.ndarray | None:
         """Reference position (mm) of the displacement node with the largest residual force in

@@ -2,9 +2,13 @@
 
 Every step solves the full nonlinear system R(u_{n+1}; u_n, Δt) = 0 (backward Euler in the
 history terms) with Newton's method. The step grows while Newton converges easily and is cut
-when it fails (divergence, NaN, inverted or over-compacted elements); after `max_cuts` cuts in
-a row the run stops with a message that says when, where and why. Forms are compiled once:
-time, step size and loads are `fem.Constant`s that the problem updates in place.
+when it fails (divergence, NaN, inverted elements); after `max_cuts` cuts in a row the run
+stops with a message that says when, where and why. Compaction of a porous tissue (J within
+the margin of its solid fraction φ0, at a quadrature point or a node) is a physical limit, not
+a numerical one: the run stops at once with a `CompactionError` (also when Newton's residual
+turns non-finite twice in a step at an iterate whose pores closed). Times in the messages carry
+the digits that tell t and t + Δt apart. Forms are compiled once: time, step size and loads are
+`fem.Constant`s that the problem updates in place.
 """
 
 from __future__ import annotations
@@ -19,9 +23,10 @@ from typing import Protocol
 import dolfinx.fem.petsc
 import numpy as np
 from dolfinx import fem
+from mpi4py import MPI
 from petsc4py import PETSc
 
-from .errors import ConvergenceError, FingertipError
+from .errors import CompactionError, ConvergenceError, FingertipError
 from .loading import step_times
 
 #: Newton with a backtracking line search and a direct solve (MUMPS): robust for contact and
@@ -65,6 +70,11 @@ class Steppable(Protocol):
 
     def inadmissible(self) -> str | None:
         """Why the converged state cannot be accepted (inverted elements, ...), or None."""
+
+    # Optional: `compacted(margin=None, nodes=True)`, the porous tissue's lowest J if within
+    # `margin` of its solid fraction (admissibility.Compacted: `message(when)`), else None. The
+    # stepper stops on it with a CompactionError; `residual_hotspot(residual)`, where the
+    # residual of a failed attempt is largest.
 
     def diagnostics(self) -> dict[str, float]:
         """Per-step quantities of the converged state, before `accept`: force, min J, ..."""
@@ -134,6 +144,7 @@ class TimeStepper:
             petsc_options=opts,
         )
         self.snes = self.nonlinear.solver
+        self._watch_residual()
 
     def close(self) -> None:
         """Destroy the solver's PETSc objects now, on every rank together.
@@ -147,8 +158,28 @@ class TimeStepper:
             if obj is not None:
                 obj.destroy()
 
+    def _watch_residual(self) -> None:
+        """Wrap the residual so that, where it turns non-finite at a Newton iterate (not at the
+        initial guess, the predictor), the problem's compaction finding there is kept: while
+        the residual is assembled the unknowns hold that iterate; after a failed solve they
+        hold SNES's last accepted iterate instead."""
+        self._evaluations, self._closed = 0, None
+        check = getattr(self.problem, "compacted", None)
+        if check is None:
+            return
+        vector, (function, args, kargs) = self.snes.getFunction()
+
+        def residual(snes, x, f):
+            function(snes, x, f, *args, **kargs)
+            self._evaluations += 1
+            if self._evaluations > 1 and self._closed is None and not _finite(f):
+                self._closed = check(0.0, False)  # J ≤ φ0 at a quadrature point?
+
+        self.snes.setFunction(residual, vector)
+
     def solve_once(self) -> tuple[int, int]:
         """One Newton solve from the current state; returns (converged reason, iterations)."""
+        self._evaluations, self._closed = 0, None
         with np.errstate(all="ignore"):
             self.nonlinear.solve()
         return self.snes.getConvergedReason(), self.snes.getIterationNumber()
@@ -180,7 +211,7 @@ class TimeStepper:
             states.appendleft(previous)
         while t < end_time - 1e-12 * max(1.0, end_time):
             started = wallclock.perf_counter()
-            cuts, why = 0, ""
+            cuts, why, closed_iterates = 0, "", 0
             while True:
                 t_new = step_times(marks, t, dt, end_time)
                 problem.dt.value = t_new - t
@@ -188,10 +219,12 @@ class TimeStepper:
                 if opts.extrapolate and len(states) == 2 and not _is_mark(t, marks):
                     _extrapolate(problem.unknowns, states, t_new)
                 reason, iterations = self.solve_once()
+                compacted = None
                 if reason > 0:
                     why = (problem.inadmissible() or "").rstrip(".")
                     if not why:
                         break
+                    compacted = _compacted(problem)  # a solution: the limit is reached
                 else:
                     why = f"Newton did not converge ({_SNES_REASONS.get(reason, reason)})"
                     hotspot = getattr(problem, "residual_hotspot", None)
@@ -200,17 +233,33 @@ class TimeStepper:
                         if where is not None:
                             why += (f"; the residual is largest near x = ({where[0]:.3f}, "
                                     f"{where[1]:.3f}) mm")
+                    # Did the residual turn non-finite at an iterate whose pores closed (J ≤ φ0
+                    # at a quadrature point)? Once may be an overshoot; again after a cut, it
+                    # is the limit.
+                    closed_iterates += self._closed is not None
+                    compacted = self._closed if closed_iterates > 1 else None
                 problem.restore()
+                if compacted is not None:
+                    problem.set_time(t)
+                    a, b = _distinct(t, t_new)
+                    raise CompactionError(
+                        compacted.message(f"at t = {b} s (the step from t = {a} s, Δt = "
+                                          f"{t_new - t:.3g} s)", iterate=reason <= 0,
+                                          before=_approach(problem, compacted, t, t_new,
+                                                           nodes=reason > 0))
+                        + f" Results up to t = {a} s are saved.")
                 cuts += 1
                 dt = (t_new - t) * opts.cut
                 if cuts > opts.max_cuts or dt < opts.dt_min:
                     problem.set_time(t)
+                    a, b = _distinct(t, t_new)
+                    load_a, load_b = _distinct(history(t), history(t_new))
                     raise ConvergenceError(
-                        f"the step from t = {t:.6g} s to t = {t_new:.6g} s (load "
-                        f"{history(t):.6g} -> {history(t_new):.6g}) failed {cuts} times, the last "
-                        f"with Δt = {t_new - t:.3g} s: {why}. Results up to t = {t:.6g} s are "
-                        "saved. Fix: lower the load or its rate, refine the mesh where it fails, "
-                        "or allow smaller steps (dt_min, max_cuts)."
+                        f"the step from t = {a} s to t = {b} s (load {load_a} -> {load_b}) "
+                        f"failed {cuts} times, the last with Δt = {t_new - t:.3g} s: {why}. "
+                        f"Results up to t = {a} s are saved. Fix: lower the load or its rate, "
+                        "refine the mesh where it fails, or allow smaller steps (dt_min, "
+                        "max_cuts)."
                     )
             # Diagnostics first: accepting advances the history, after which the stress forms
             # describe the start of the next step, not the state just solved.
@@ -242,6 +291,42 @@ class TimeStepper:
             if not math.isfinite(dt) or dt <= 0:
                 raise FingertipError(f"time step became {dt} at t = {t}")
         return reports
+
+
+def _compacted(problem, margin: float | None = None, nodes: bool = True):
+    """The problem's compaction finding (admissibility.Compacted) if it has the check."""
+    check = getattr(problem, "compacted", None)
+    return None if check is None else check(margin, nodes)
+
+
+def _approach(problem, compacted, t: float, t_new: float, nodes: bool) -> str:
+    """How J approached the limit over the failed step: the lowest J of the last accepted
+    state (now restored; at the same kind of points) and, by linear interpolation, when it
+    crossed the limit."""
+    accepted = _compacted(problem, math.inf, nodes)  # the lowest J, wherever it is
+    if accepted is None:
+        return ""
+    J0, J1, limit = accepted.J, compacted.J, compacted.limit
+    text = f"the lowest J was {J0:.4g} at t = {_distinct(t, t_new)[0]} s"
+    if J0 > limit > J1:
+        crossing = t + (t_new - t) * (J0 - limit) / (J0 - J1)
+        text += f" and crossed {limit:g} near t = {_distinct(crossing, t_new)[0]} s"
+    return text
+
+
+def _finite(vector: PETSc.Vec) -> bool:
+    """Every entry of a (parallel) PETSc vector finite, on every rank."""
+    local = bool(np.all(np.isfinite(vector.getArray(readonly=True))))
+    return vector.getComm().tompi4py().allreduce(local, op=MPI.LAND)
+
+
+def _distinct(a: float, b: float, digits: int = 6) -> tuple[str, str]:
+    """a and b printed with enough significant digits (at least `digits`) to tell them apart:
+    t = 36.4231 s and t + 1e-5 s print as 36.4231 and 36.42311."""
+    scale, gap = max(abs(a), abs(b)), abs(b - a)
+    if gap > 0 and scale > 0:
+        digits = max(digits, min(17, math.ceil(math.log10(scale / gap)) + 2))
+    return f"{a:.{digits}g}", f"{b:.{digits}g}"
 
 
 def _is_mark(t: float, marks: Sequence[float]) -> bool:

@@ -45,7 +45,7 @@ def test_check_compaction_message():
         mat.check_compaction(0.39, "subcutaneous at (1.0, -5.2) mm", HM.phi0)
     text = str(err.value)
     assert "subcutaneous at (1.0, -5.2) mm" in text and "0.39" in text and "phi0 = 0.4" in text
-    assert "smaller time steps" in text and "less indentation" in text
+    assert "less deeply" in text and "smaller time steps cannot help" in text
 
 
 def test_consolidation_time_scale_is_long():

@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
-from typing import ClassVar
+from typing import ClassVar, NamedTuple
 
 import numpy as np
 import ufl
@@ -31,12 +31,13 @@ from dolfinx.fem.petsc import NonlinearProblem
 from mpi4py import MPI
 
 from .. import materials as mat
+from ..admissibility import Admissibility, Compaction
 from ..contact import NitscheContact, Obstacle, p_wave_modulus
-from ..errors import CompactionError
 from ..indenters import Cylinder
 from ..kinematics import deformation_gradient
+from ..loading import RampHold
 from ..poroelasticity import biphasic_residuals
-from ..solver import DEFAULT_PETSC_OPTIONS
+from ..solver import DEFAULT_PETSC_OPTIONS, StepOptions, TimeStepper
 from ..viscoelasticity import QuasiLinearViscoelasticity
 
 #: Quadrature degree of the block's volume terms: the hyperfoam stress is not polynomial.
@@ -65,6 +66,74 @@ def confined_drained_stress(solid, lam: float) -> np.ndarray:
     return tau[:2] / stretches[:2]
 
 
+class PlatenState(NamedTuple):
+    """A homogeneous plane-strain state under platens: stretches across (x) and along (y) the
+    platens' travel, J = λx λy, the pore pressure p (MPa) and the total nominal stress P22
+    (MPa: the platen force per unit reference width, negative in compression)."""
+
+    stretch_x: float
+    stretch_y: float
+    J: float
+    pressure: float
+    P22: float
+
+
+def confined_drained_state(solid, lam: float) -> PlatenState:
+    """The drained end of confined compression to the stretch λ (`confined_drained_stress`):
+    F = diag(1, λ), p = 0, P22 = τ2/λ."""
+    return PlatenState(1.0, lam, lam, 0.0, float(confined_drained_stress(solid, lam)[1]))
+
+
+def unconfined_undrained_state(solid, lam: float) -> PlatenState:
+    r"""The undrained state of plane-strain unconfined compression between frictionless
+    platens at the platen stretch λy = `lam`: the core of a specimen loaded faster than it
+    drains.
+
+    Frictionless platens moved uniformly leave every field independent of y (u_y = (λy − 1) y
+    exactly), so the problem is one-dimensional in x: σ_xy = 0 and equilibrium ∂σ_xx/∂x = 0
+    with a traction-free edge give σ_xx = 0 everywhere. The mixture's Cauchy stress is
+    σ = τ(F)/J − p I, τ_a = Σ_i (2μ_i/α_i)(λ_a^α_i − J^(−α_i β_i)) the hyperfoam's principal
+    Kirchhoff stresses (λ3 = 1, plane strain). Where no fluid has left, J = λx λy = 1, so
+
+        λx = 1/λy,   p = τ1 = Σ_i (2μ_i/α_i)(λy^(−α_i) − 1)        (σ_xx = τ1 − p = 0),
+        P22 = J σ_yy / λy = (τ2 − τ1)/λy,   τ2 = Σ_i (2μ_i/α_i)(λy^α_i − 1).
+
+    At J = 1 the volume term is 1 for every β_i: the undrained response does not depend on ν.
+    Displacement control makes it exact until the drainage front sqrt(c t) (c = k M) reaches
+    the point: no Mandel–Cryer rise (that needs a prescribed force).
+    """
+    stretches = np.array([1.0 / lam, lam, 1.0])
+    tau = solid.principal_kirchhoff(stretches)
+    return PlatenState(1.0 / lam, lam, 1.0, float(tau[0]), float((tau[1] - tau[0]) / lam))
+
+
+def unconfined_drained_state(solid, lam: float) -> PlatenState:
+    r"""The drained end (p = 0) of plane-strain unconfined compression between frictionless
+    platens at the platen stretch λy = `lam`.
+
+    As in `unconfined_undrained_state` σ_xx = 0 everywhere; with p = 0 the solid alone is
+    free across: τ1(λx, λy, 1) = Σ_i (2μ_i/α_i)(λx^α_i − (λx λy)^(−α_i β_i)) = 0. For λy < 1
+    τ1 < 0 at λx = 1 (the volume term pushes out; λ0 ln λy at small strain) and τ1 > 0 at
+    λx = 1/λy (J = 1), so Brent's method finds λx between them (to round-off). ν = 0 (every
+    β_i = 0): τ1 = Σ (2μ_i/α_i)(λx^α_i − 1) vanishes at λx = 1: no lateral expansion at all,
+    the foam's signature. Then J = λx λy and P22 = J σ_yy/λy = τ2/λy.
+    """
+    from scipy.optimize import brentq
+
+    def tau_x(lx: float) -> float:
+        return float(solid.principal_kirchhoff(np.array([lx, lam, 1.0]))[0])
+
+    low, high = sorted((1.0, 1.0 / lam))
+    if tau_x(low) == 0.0:
+        lx = low
+    elif tau_x(high) == 0.0:
+        lx = high
+    else:
+        lx = brentq(tau_x, low, high, xtol=1e-15, rtol=4 * np.finfo(float).eps)
+    tau = solid.principal_kirchhoff(np.array([lx, lam, 1.0]))
+    return PlatenState(lx, lam, lx * lam, 0.0, float(tau[1] / lam))
+
+
 def prony_ramp_integral(prony, t: float, T: float = 1.0) -> float:
     """∫_0^min(t,T) g(t − s) ds (s), g(t) = g∞ + Σ g_i exp(−t/τ_i) the relaxation function.
 
@@ -77,6 +146,16 @@ def prony_ramp_integral(prony, t: float, T: float = 1.0) -> float:
 
 
 # ---- wiring ----------------------------------------------------------------------------------
+
+
+def graded(s: np.ndarray, ratio: float) -> np.ndarray:
+    """s ∈ [0, 1] mapped so that equal cells in s shrink geometrically towards s = 1, the
+    first `ratio` times the last (1: unchanged): 1 − (e^(g(1 − s)) − 1)/(e^g − 1), g = ln ratio.
+    A drained boundary's layer, ~sqrt(c t) thick at first, needs the small cells."""
+    if ratio == 1.0:
+        return s
+    g = math.log(ratio)
+    return 1.0 - np.expm1(g * (1.0 - s)) / math.expm1(g)
 
 
 def newton_problem(F, u, bcs, prefix: str, **options) -> NonlinearProblem:
@@ -109,14 +188,23 @@ class ConfinedBlock:
     from `poroelasticity`; the top drained, p = 0, if `drained_top`, every other boundary
     impermeable), else the hyperelastic `solid`; `prony` makes the solid's stress quasi-linear
     viscoelastic. Displacement degree `degree_u`: 2 with the P1 pressure is Taylor–Hood, 1 the
-    equal-order pair that fails the inf-sup condition.
+    equal-order pair that fails the inf-sup condition. A tissue is guarded against compaction
+    as the fingertip's is (`admissibility`): J ≤ φ0 + `compaction_margin` at a quadrature point
+    or a node stops the time stepper with a `CompactionError`.
     """
+
+    #: The axis along which `grading` shrinks the cells (towards its far end: the drained top).
+    GRADED_AXIS = 1
 
     def __init__(self, nx, ny, load, *, tissue=None, solid=None, prony=None, degree_u=2,
                  width=1.0, H=1.0, load_width=None, drained_top=False, top_displacement=False,
-                 diagonal="right", comm=MPI.COMM_SELF):
+                 diagonal="right", compaction_margin=0.02, grading=1.0, comm=MPI.COMM_SELF):
         self.msh = mesh.create_rectangle(comm, [[0.0, 0.0], [width, H]], [nx, ny],
                                          diagonal=getattr(mesh.DiagonalType, diagonal))
+        if grading != 1.0:  # cells shrink geometrically towards the drained boundary
+            axis, length = self.GRADED_AXIS, (width, H)[self.GRADED_AXIS]
+            x = self.msh.geometry.x
+            x[:, axis] = length * graded(x[:, axis] / length, grading)
         self.W, self.H, self.load, self.tissue = width, H, load, tissue
         self.load_width = width if load_width is None else load_width
         self.top_displacement = top_displacement
@@ -136,10 +224,11 @@ class ConfinedBlock:
         self.bcs = self._bcs(drained_top)
         self.entity_maps = None
         self._last = [f.x.array.copy() for f in self.unknowns]
-        # J at each cell's centroid and vertices: with P2 displacements J varies over a cell,
-        # and its extremes (inversion, compaction) are usually at the corners
-        points = np.array([[1 / 3, 1 / 3], [0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
-        self._J = fem.Expression(ufl.det(F), points)
+        cells = np.arange(self.msh.topology.index_map(2).size_local, dtype=np.int32)
+        self.admissibility = Admissibility(F, self.msh, QUADRATURE_DEGREE, None if tissue is None
+                                           else Compaction(cells, tissue.phi0, compaction_margin,
+                                                           tissue.permeability.k0))
+        self._J = fem.Expression(ufl.det(F), np.array([[1 / 3, 1 / 3]]))  # at the centroids
         self._settle = fem.form(-self.u[1] * self.ds(1))
 
     def _top_facets(self) -> np.ndarray:
@@ -204,24 +293,20 @@ class ConfinedBlock:
             f.x.array[:] = saved
 
     def inadmissible(self) -> str | None:
-        """Inverted cells, or a tissue within 0.02 of compaction (J = φ0)."""
-        J_min, where = self.min_jacobian()
-        if not np.isfinite(J_min) or J_min <= 0:
-            return f"inverted elements (J = {J_min:.3g})"
-        if self.tissue is None:
-            return None
-        try:  # the same margin as problem.FingertipProblem
-            mat.check_compaction(J_min, f"block cell near ({where[0]:.3f}, {where[1]:.3f}) mm",
-                                 self.tissue.phi0, margin=0.02)
-        except CompactionError as e:
-            return str(e)
-        return None
+        """Inverted cells, or a tissue within the margin of compaction (J = φ0)."""
+        return self.admissibility.violation()
+
+    def compacted(self, margin: float | None = None, nodes: bool = True):
+        """The tissue's lowest J if within `margin` (the block's by default) of φ0, else None."""
+        return self.admissibility.compacted(margin, nodes)
 
     def diagnostics(self) -> dict[str, float]:
         out = {"settlement": self.settlement(), "J_min": self.min_jacobian()[0],
                "max_J_change_lower_half": self.max_J_change(below=self.H / 2)}
         if self.top_displacement:
             out["reaction"] = self.reaction()
+        if self.p is not None:
+            out["core_pressure"] = self.core_pressure()
         return out
 
     # outputs ----------------------------------------------------------------------------------
@@ -242,25 +327,25 @@ class ConfinedBlock:
         return self.msh.comm.allreduce(fem.assemble_scalar(self._reaction_form))
 
     def _jacobians(self) -> tuple[np.ndarray, np.ndarray]:
-        """J at the owned cells' centroids and vertices (a row per cell), the cells' centres."""
+        """J at the owned cells' centroids, and the cells' centres."""
         n = self.msh.topology.index_map(2).size_local
         cells = np.arange(n, dtype=np.int32)
         centres = self.msh.geometry.x[self.msh.geometry.dofmaps[0][cells]].mean(axis=1)
-        return self._J.eval(self.msh, cells).reshape(n, -1), centres
+        return self._J.eval(self.msh, cells).reshape(n), centres
 
     def min_jacobian(self) -> tuple[float, np.ndarray]:
-        """The smallest J over every rank, and the centre of a cell reaching it (mm)."""
-        J, centres = self._jacobians()
-        with np.errstate(invalid="ignore"):
-            worst = int(np.nanargmin(J.min(axis=1))) if np.isfinite(J).any() else 0
-        J_min, *where = self.msh.comm.allreduce((float(np.min(J)), *centres[worst]), op=MPI.MIN)
-        return J_min, np.array(where)
+        """The smallest J at the quadrature points and vertices over every rank, and where."""
+        return self.admissibility.min_jacobian()
+
+    def core_J_change(self) -> float:
+        """max |J − 1| at the centroids of the lower half: the core, away from a drained top."""
+        return self.max_J_change(below=self.H / 2)
 
     def max_J_change(self, below: float) -> float:
         """max |J − 1| at the centroids of the cells whose centre lies below y = `below`
         (every rank): the volume change away from a drained top's boundary layer."""
         J, centres = self._jacobians()
-        local = float(np.max(np.abs(J[centres[:, 1] < below, 0] - 1), initial=0.0))
+        local = float(np.max(np.abs(J[centres[:, 1] < below] - 1), initial=0.0))
         return self.msh.comm.allreduce(local, op=MPI.MAX)
 
     def pressure_nodes(self) -> tuple[np.ndarray, np.ndarray]:
@@ -276,6 +361,258 @@ class ConfinedBlock:
         left = np.isclose(X[:, 0], 0.0)
         order = np.argsort(X[left, 1])
         return np.interp(y, X[left, 1][order], p[left][order])
+
+    def core_pressure(self) -> float:
+        """p (MPa) at the bottom, y = 0: the point farthest from a drained top."""
+        return float(self.pressure_at(np.array([0.0]))[0])
+
+
+class UnconfinedBlock(ConfinedBlock):
+    """Plane-strain unconfined compression of a biphasic block between frictionless,
+    impermeable platens, drained at its free edge (a Mandel-type problem, under a prescribed
+    platen displacement): the quarter [0, W] × [0, H] (mm) of a specimen 2W wide and 2H high.
+
+    x = 0 and y = 0 are symmetry lines (rollers: u_x = 0, resp. u_y = 0; the bottom is also the
+    mid-plane between the platens); the top is the platen, displaced uniformly downwards by
+    `load(t)` (mm) with u_x free (frictionless); x = W is free and drained (p = 0); the platens
+    and the symmetry lines are impermeable (zero flux, the natural condition). Every field is
+    independent of y (see `unconfined_undrained_state`): one row of cells is exact in y.
+    `grading` shrinks the cells towards the drained edge. The core is x < W/2 (centre x = 0).
+    """
+
+    GRADED_AXIS = 0
+
+    def __init__(self, nx, ny, load, *, tissue, degree_u=2, width=1.0, H=1.0,
+                 compaction_margin=0.02, grading=1.0, comm=MPI.COMM_SELF):
+        super().__init__(nx, ny, load, tissue=tissue, degree_u=degree_u, width=width, H=H,
+                         top_displacement=True, compaction_margin=compaction_margin,
+                         grading=grading, comm=comm)
+
+    def _bcs(self, drained_top: bool) -> list[fem.DirichletBC]:
+        """Symmetry at x = 0 and y = 0, the platen's u_y at the top, p = 0 at the free edge."""
+        msh, W = self.msh, self.W
+        centre = mesh.locate_entities_boundary(msh, 1, lambda x: np.isclose(x[0], 0.0))
+        bottom = mesh.locate_entities_boundary(msh, 1, lambda x: np.isclose(x[1], 0.0))
+        edge = mesh.locate_entities_boundary(msh, 1, lambda x: np.isclose(x[0], W))
+        Vx, Vy = self.u.function_space.sub(0), self.u.function_space.sub(1)
+        Q = self.p.function_space
+        return [fem.dirichletbc(0.0, fem.locate_dofs_topological(Vx, 1, centre), Vx),
+                fem.dirichletbc(0.0, fem.locate_dofs_topological(Vy, 1, bottom), Vy),
+                fem.dirichletbc(self.value, self._top_y_dofs, Vy),
+                fem.dirichletbc(0.0, fem.locate_dofs_topological(Q, 1, edge), Q)]
+
+    def core_pressure(self) -> float:
+        """p (MPa) at the centre x = 0 (mean over its nodes; p does not depend on y)."""
+        X, p = self.pressure_nodes()
+        return float(np.mean(p[np.isclose(X[:, 0], 0.0)]))
+
+    def core_J_change(self) -> float:
+        """max |J − 1| at the centroids of the cells with x < W/2: the undrained core."""
+        J, centres = self._jacobians()
+        local = float(np.max(np.abs(J[centres[:, 0] < self.W / 2] - 1), initial=0.0))
+        return self.msh.comm.allreduce(local, op=MPI.MAX)
+
+    def diagnostics(self) -> dict[str, float]:
+        return {"settlement": self.settlement(), "J_min": self.min_jacobian()[0],
+                "reaction": self.reaction(), "core_pressure": self.core_pressure(),
+                "core_J_change": self.core_J_change()}
+
+
+# ---- the canonical biphasic benchmarks: a platen ramp, then hold ---------------------------------
+
+
+@dataclass(frozen=True)
+class PlatenRelaxation:
+    """A Holmes–Mow tissue (the paper's κ and M, permeability `k0` at J = 1, the hyperfoam
+    `solid`) compressed by a platen to `strain` (of the height) in a linear ramp, then held:
+    stress relaxation. Times scale with the consolidation time t_c = L²/(k0 M), M = K0 + 4μ0/3
+    the confined modulus and L the drainage length: the ramp lasts `ramp` t_c, the run `end`
+    t_c. Subclasses fix the geometry (`ConfinedRelaxation`, `UnconfinedRelaxation`), their
+    block and their exact limits.
+    """
+
+    solid: mat.Hyperfoam = mat.SUBCUTANEOUS
+    k0: float = 1.0  # mm⁴/(N·s)
+    strain: float = 0.1
+    ramp: float = 0.002
+    end: float = 12.0
+    length: float = 1.0  # mm: the drainage length L
+    height: float = 1.0  # mm: the height the platen compresses
+
+    @property
+    def tissue(self) -> mat.Biphasic:
+        hm = mat.HOLMES_MOW_SUBCUTANEOUS
+        return mat.Biphasic(self.solid, mat.HolmesMow(k0=self.k0, phi0=hm.phi0,
+                                                      kappa=hm.kappa, M=hm.M))
+
+    @property
+    def consolidation_time(self) -> float:
+        """t_c = L²/(k0 M) (s)."""
+        return self.length**2 / (self.k0 * confined_modulus(self.solid))
+
+    @property
+    def history(self) -> RampHold:
+        """The platen's travel (mm) against time (s)."""
+        tc = self.consolidation_time
+        return RampHold(self.strain * self.height, self.ramp * tc, self.end * tc)
+
+    @property
+    def stretch(self) -> float:
+        return 1.0 - self.strain
+
+    def slowest_rate(self) -> float:
+        """λ1 = (π/2)² c/L² (1/s): the decay rate of the slowest consolidation mode near the
+        drained end (one drained side, L the drainage length), c the end state's
+        consolidation coefficient (`consolidation_coefficient`)."""
+        return (math.pi / 2) ** 2 * self.consolidation_coefficient() / self.length**2
+
+    def end_tolerance(self, excess: float, steps: np.ndarray) -> float:
+        """A bound on |F/F_drained − 1| at the end of a run: the drained end state is
+        homogeneous (u linear, p = 0), so P2/P1 holds it exactly and the mesh adds nothing;
+        what is left is the slowest consolidation mode, at most the relative excess force
+        `excess` at the ramp's end, decayed by backward Euler's Π (1 + λ1 Δt_i)⁻¹ over the
+        hold's `steps` (slower than e^(−λ1 t)); twice that, for the modes' nonlinear mixing."""
+        decay = float(np.prod(1.0 / (1.0 + self.slowest_rate() * np.asarray(steps))))
+        return 2.0 * abs(excess) * decay
+
+
+@dataclass(frozen=True)
+class ConfinedRelaxation(PlatenRelaxation):
+    """Confined compression (the column of `ConfinedBlock`, `length` = its height, drained on
+    top, 0.1 mm wide) by a displacement ramp, then held.
+
+    Exact limits: at the end, drained, the homogeneous state F = diag(1, λ) with p = 0 and the
+    force −P22 W of `confined_drained_state`. At the start, undrained: a confined piece of
+    tissue that keeps its volume cannot deform, so below the drainage front (~sqrt(c t) under
+    the drained top) J = 1 and the solid is unstressed: the fluid carries the whole load,
+    p(bottom) = F/W. The layer above the front takes the whole travel; the linear solution
+    for a displacement ramp u = V t into a drained half-space puts its top strain at
+    2 V sqrt(t/(π c)), i.e. 2ε/sqrt(π τ0) at the ramp's end (τ0 = t0/t_c): a fast ramp
+    compacts the top (issue 11). The defaults balance the two: τ0 = 0.002 keeps the lower
+    half undrained to e^(−1/(16 τ0)) ≈ 3e-14 and a 1 % strain puts the top strain near 0.25.
+    """
+
+    strain: float = 0.01
+    width: float = 0.1
+
+    def block(self, n: int, grading: float = 1.0, comm=MPI.COMM_SELF) -> ConfinedBlock:
+        return ConfinedBlock(1, n, self.history, tissue=self.tissue, width=self.width,
+                             H=self.length, drained_top=True, top_displacement=True,
+                             grading=grading, comm=comm)
+
+    def drained(self) -> PlatenState:
+        return confined_drained_state(self.solid, self.stretch)
+
+    def consolidation_coefficient(self) -> float:
+        """c = k(λ) P22'(λ)/λ (mm²/s) at the drained end: with J = λ and the total P22 =
+        P_s(λ) − p uniform, the mass balance ∂λ/∂t = ∂/∂Y((k/λ) ∂p/∂Y) is a diffusion of λ
+        with this coefficient (P_s' by central differences of the closed form)."""
+        lam, h = self.stretch, 1e-6
+
+        def P(x):
+            return confined_drained_state(self.solid, x).P22
+
+        slope = (P(lam + h) - P(lam - h)) / (2 * h)
+        return float(self.tissue.permeability.permeability_np(lam)) * slope / lam
+
+    def drained_force(self) -> float:
+        """The platen force at the drained end (N/mm, compressive positive)."""
+        return -self.drained().P22 * self.width
+
+
+@dataclass(frozen=True)
+class UnconfinedRelaxation(PlatenRelaxation):
+    """Plane-strain unconfined compression between frictionless impermeable platens with a
+    drained free edge (`UnconfinedBlock`: `length` = the half-width W, `height` = the half
+    height), by a displacement ramp, then held.
+
+    Exact limits: at the end of a fast ramp the core (x < W/2) is undrained: p equals
+    `unconfined_undrained_state`'s (the front sqrt(c t0) = sqrt(τ0) W leaves the centre
+    undrained to e^(−1/(16 τ0))); at long times the force equals
+    `unconfined_drained_state`'s −P22 W. The free edge is drained from the start, at the
+    drained lateral stretch: J there is the drained J, no compaction however fast the ramp.
+    """
+
+    height: float = 0.25
+
+    def block(self, n: int, grading: float = 1.0, comm=MPI.COMM_SELF) -> UnconfinedBlock:
+        return UnconfinedBlock(n, 1, self.history, tissue=self.tissue, width=self.length,
+                               H=self.height, grading=grading, comm=comm)
+
+    def undrained(self) -> PlatenState:
+        return unconfined_undrained_state(self.solid, self.stretch)
+
+    def drained(self) -> PlatenState:
+        return unconfined_drained_state(self.solid, self.stretch)
+
+    def consolidation_coefficient(self) -> float:
+        """c = k(J) P11'(λx)/J (mm²/s) at the drained end: with λy fixed, J = λx λy and the
+        total P11 = P_s(λx) − p λy = 0, the mass balance λy ∂λx/∂t = ∂/∂X((J k/λx²) ∂p/∂X)
+        is a diffusion of λx with this coefficient (P_s = τ1/λx, by central differences)."""
+        end = self.drained()
+        lx, ly, h = end.stretch_x, end.stretch_y, 1e-6
+
+        def P(x):
+            return float(self.solid.principal_kirchhoff(np.array([x, ly, 1.0]))[0]) / x
+
+        slope = (P(lx + h) - P(lx - h)) / (2 * h)
+        return float(self.tissue.permeability.permeability_np(end.J)) * slope / end.J
+
+    def drained_force(self) -> float:
+        """The platen force at the drained end (N/mm over the half-width, compressive > 0)."""
+        return -self.drained().P22 * self.length
+
+
+@dataclass
+class RelaxationRun:
+    """One run's histories (one entry per accepted step, after t = 0): time (s), platen force
+    (N/mm, compressive positive), core pressure (MPa), max |J − 1| in the core, min J; and its
+    cost: steps, Newton iterations, step cuts, wall time of the stepping (s)."""
+
+    time: np.ndarray
+    force: np.ndarray
+    core_pressure: np.ndarray
+    core_J_change: np.ndarray
+    J_min: np.ndarray
+    steps: int
+    newton_iterations: int
+    cuts: int
+    wall_time_s: float
+
+    def at(self, t: float) -> int:
+        """The index of the step that ended at t (the stepper lands on breakpoints)."""
+        i = int(np.argmin(np.abs(self.time - t)))
+        if not abs(self.time[i] - t) <= 1e-9 * max(1.0, abs(t)):
+            raise ValueError(f"no step ended at t = {t} s")
+        return i
+
+
+def run_relaxation(problem: PlatenRelaxation, block: ConfinedBlock, options: StepOptions,
+                   petsc_options: dict | None = None, sample_times=(), prefix: str = "relax_"
+                   ) -> RelaxationRun:
+    """Step `block` along `problem`'s history with `options`, landing on `sample_times` (and
+    the ramp's end); returns the histories and the cost."""
+    import time as wallclock
+
+    history = problem.history
+    stepper = TimeStepper(block, options, petsc_options, prefix=prefix)
+    rows = []
+
+    def record(report):
+        d = report.diagnostics
+        rows.append((report.time, -d["reaction"], d["core_pressure"], block.core_J_change(),
+                     d["J_min"], report.newton_iterations, report.cuts))
+
+    started = wallclock.perf_counter()
+    try:
+        stepper.run(history, history.end_time, breakpoints=sorted(sample_times),
+                    on_step=record)
+    finally:
+        wall = wallclock.perf_counter() - started
+        stepper.close()
+    a = np.array(rows)
+    return RelaxationRun(a[:, 0], a[:, 1], a[:, 2], a[:, 3], a[:, 4], len(rows),
+                         int(a[:, 5].sum()), int(a[:, 6].sum()), wall)
 
 
 # ---- Terzaghi's consolidation column -------------------------------------------------------------

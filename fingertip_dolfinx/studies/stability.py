@@ -507,8 +507,9 @@ def _interpret(case: str, rows: list[dict]) -> str:
             other = [f"{r['value']}: stopped at J = {r['J_min_last_accepted']:.2f} without "
                      "naming compaction" for r in runs if not r["detected"]]
             foams = [r for r in rows if r["method"] == "stability.drucker_check"]
-            return ("The solver names compaction (inadmissible state -> ConvergenceError with "
-                    "check_compaction's message) for: " + "; ".join(named) + ". "
+            return ("The solver stops at once on compaction (J within the margin of phi0 at a "
+                    "quadrature point or a node -> CompactionError naming the time, the place "
+                    "and the permeability) for: " + "; ".join(named) + ". "
                     + ("; ".join(other) + " (Newton stalls on round-off of the stiff volumetric "
                        "term J^(-αβ) first). " if other else "")
                     + "Drucker: " + "; ".join(
