@@ -61,14 +61,15 @@ def run_scene(scene: Scene, out: str | Path, *, resume: bool = False, progress: 
     comm = comm or MPI.COMM_WORLD
     job = Run(scene, Path(out), comm, resume=resume, progress=progress)
     started = time.perf_counter()
+    failed = None
     try:
         job.run()
-        converged, failure = True, None
-    except ConvergenceError as error:
-        converged, failure = False, str(error)
-    summary = job.finish(converged, failure, time.perf_counter() - started)
-    if failure is not None:
-        raise ConvergenceError(failure)
+    except ConvergenceError as error:  # CompactionError too: its type reaches the caller
+        failed = error
+    summary = job.finish(failed is None, None if failed is None else str(failed),
+                         time.perf_counter() - started)
+    if failed is not None:
+        raise failed
     return summary
 
 
