@@ -61,6 +61,7 @@ marked as an assumption in the data file.
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -190,6 +191,7 @@ class ReceptorPopulation:
     classes: tuple[ReceptorClass, ...]
     half_width: float
     name: str = "custom"
+    description: str = ""
 
     def __getitem__(self, name: str) -> ReceptorClass:
         for c in self.classes:
@@ -222,13 +224,18 @@ class ReceptorPopulation:
                      np.concatenate(depth), np.concatenate(points))
 
     def record(self) -> dict:
-        return {"name": self.name, "half_width": self.half_width,
-                "classes": {c.name: {"depth": c.depth, "density": c.density,
-                                     "quantity": c.quantity, "sed_gain": c.sed_gain,
-                                     "lif": {"tau": c.lif.tau, "refractory": c.lif.refractory,
-                                             "saturation": c.lif.saturation,
-                                             **dict(zip(WEIGHTS, c.lif.weights))}}
-                            for c in self.classes}}
+        """The set as plain data, in the data file's own tables (`receptors_from_dict` reads
+        it back)."""
+        def table(c: ReceptorClass) -> dict:
+            lif = {"tau": c.lif.tau, "refractory": c.lif.refractory,
+                   "saturation": c.lif.saturation, **dict(zip(WEIGHTS, c.lif.weights))}
+            gain = {} if c.sed_gain is None else {"sed_gain": c.sed_gain}
+            return {"description": c.description, "depth": c.depth, "density": c.density,
+                    "quantity": c.quantity, **gain, "lif": lif}
+
+        return {"name": self.name, "description": self.description,
+                "sites": {"half_width": self.half_width},
+                **{c.name: table(c) for c in self.classes}}
 
 
 def row_abscissae(outer, spacing: float, half_width: float) -> np.ndarray:
@@ -275,7 +282,8 @@ def receptors_from_dict(data: Mapping, where: str = "receptors") -> ReceptorPopu
                     for name in CLASSES if name in data)
     if not classes:
         raise InputError(where, "has no receptor class.", f"add a table: {', '.join(CLASSES)}.")
-    return ReceptorPopulation(classes, half_width, name=str(data.get("name", "custom")))
+    return ReceptorPopulation(classes, half_width, name=str(data.get("name", "custom")),
+                              description=str(data.get("description", "")))
 
 
 def _receptor_class(name: str, data: Mapping, where: str) -> ReceptorClass:
@@ -460,16 +468,21 @@ def afferent_responses(result, population: ReceptorPopulation | str | None = Non
     """Rates and spike trains of every receptor of a run written with `output.receptors`.
 
     `result`: a `Result` (or its directory); `population`: the receptor set (a
-    ReceptorPopulation or a set's name or path; by default the one the run sampled) whose
-    models are applied. The samples start at rest (zero stimulus at t = 0).
+    ReceptorPopulation or a set's name or path; by default the one the run sampled, as
+    recorded in its receptors.json) whose models are applied. The samples start at rest
+    (zero stimulus at t = 0).
     """
     if not hasattr(result, "receptors"):
         from .result import Result
 
         result = Result(result)
-    if population is None or isinstance(population, str | Path):
-        population = load_receptors(population or
-                                    result.summary["scene_data"]["output"]["receptors"])
+    if population is None:
+        recorded = Path(result.out) / "receptors.json"
+        population = (receptors_from_dict(json.loads(recorded.read_text()), str(recorded))
+                      if recorded.exists() else
+                      load_receptors(result.summary["scene_data"]["output"]["receptors"]))
+    elif isinstance(population, str | Path):
+        population = load_receptors(population)
     table = result.receptors()
     times = np.unique(table["time_s"])
     if times[0] > 0:
@@ -549,7 +562,8 @@ def threshold_amplitude(lif: LIF, frequency: float, *, offset: float = 0.0, cycl
 
 class ReceptorRecorder:
     """Samples the stimulus quantities at a population's sites after every accepted step and
-    writes receptors.csv (rank 0). Collective: every rank calls `write`.
+    writes receptors.csv, and the set itself to receptors.json (rank 0). Collective: every
+    rank calls `write`.
 
     `problem`: the run's FingertipProblem, `derived`: its post.DerivedFields, `outer`: the
     section's outer ellipse; `resume_after`: keep the file's rows up to this time (--resume).
@@ -581,6 +595,9 @@ class ReceptorRecorder:
                                    problem.options.quadrature_degree)
         self.log = CsvLog(Path(out) / "receptors.csv", RECEPTOR_COLUMNS, comm, resume_after)
         self.comm = comm
+        if comm.rank == 0:  # the set the run sampled, for afferent_responses
+            (Path(out) / "receptors.json").write_text(
+                json.dumps(population.record(), indent=2) + "\n")
 
     def write(self, t: float) -> None:
         self.derived.update()

@@ -3,6 +3,7 @@ and a fine reference, the site placement against the ellipse, the data's checks,
 parameters against their stated criteria, the Cauchy stress field against the laws, and one
 coarse one-point run that samples the sites at every step."""
 
+import json
 import math
 
 import numpy as np
@@ -18,6 +19,7 @@ from fingertip_dolfinx.receptors import (
     constant_current_rate,
     lif_spikes,
     load_receptors,
+    receptors_from_dict,
     saturate,
     threshold_amplitude,
 )
@@ -170,6 +172,12 @@ def test_threshold_amplitude_follows_each_class_term_at_low_frequency():
     assert threshold_amplitude(sa1, 20.0) > 2 * threshold_amplitude(sa1, 0.2)
 
 
+def test_a_set_reads_back_from_its_record():
+    population = load_receptors()
+    again = receptors_from_dict(population.record())
+    assert again == population and again.description == population.description
+
+
 @pytest.mark.parametrize("override, named", [
     ({"SA1": {"depht": 0.75}}, "SA1.depht"),
     ({"RA": {"density": -1.0}}, "RA.density"),
@@ -269,6 +277,8 @@ def one_point(tmp_path_factory):
 def test_a_run_writes_every_site_at_every_step(one_point):
     table = one_point.receptors()
     assert tuple(table) == RECEPTOR_COLUMNS
+    assert receptors_from_dict(json.loads((one_point.out / "receptors.json").read_text())) == (
+        load_receptors())
     sites = load_receptors().sites(SECTION.outer)
     steps = one_point.time
     assert len(table["time_s"]) == len(sites) * len(steps)
@@ -305,7 +315,7 @@ def test_the_afferents_respond_to_the_ramp(one_point):
     """SED-proportional SA1 rates grow monotonically with the indentation under the bar;
     the LIF SA1 under the bar fires, the far ones do not; RA under the bar fires during the
     ramp."""
-    r = afferent_responses(one_point)
+    r = afferent_responses(one_point)  # the set recorded in receptors.json
     assert r.time[0] == 0.0 and np.all(np.diff(r.time) > 0)
     sa1 = r.of("SA1")
     near = sa1 & (np.abs(r.x) < 1.5)
