@@ -51,7 +51,8 @@ constant J > 1 the rate is r = 1 / (t_ref + τ ln(J/(J − 1))), 0 for J <= 1.
 
 TouchSim's neuron (membrane update per 0.2 ms sample, V ← V − V/τ_n + I_n) is the Euler form
 of this one with τ = τ_n / 5 kHz and J = τ_n I_n; it adds a post-spike current and noise, left
-out here. Its fitted parameter sets (17 afferents) were fitted to recordings *with its own
+out here, and lets V integrate (from 0) during its 1.2 ms without spikes, where v is held at 0
+here. Its fitted parameter sets (17 afferents) were fitted to recordings *with its own
 mechanics* (vertical stress of a Sneddon half-space, E = 50 kPa, plus a surface wave): they do
 not carry over to this model's stresses without refitting against afferent recordings, which
 this package does not have. The shipped parameters take TouchSim's time scales and the form of
