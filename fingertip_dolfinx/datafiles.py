@@ -1,9 +1,9 @@
 """Data files: the built-in ones shipped inside the package, and the user's own TOML files.
 
 Built-in files live in `fingertip_dolfinx/data/<kind>/` (`scenes`, `sections`, `indenters`,
-`materials`) and are found with `importlib.resources`, so a non-editable install (a wheel in
-site-packages) finds them as well as a source checkout does. A file is named either by the
-stem of a built-in one (`line-load`) or by a path (`./my-scene.toml`).
+`materials`, `receptors`) and are found with `importlib.resources`, so a non-editable install
+(a wheel in site-packages) finds them as well as a source checkout does. A file is named either
+by the stem of a built-in one (`line-load`) or by a path (`./my-scene.toml`).
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from pathlib import Path
 
 from .errors import InputError
 
-KINDS = ("scenes", "sections", "indenters", "materials")
+KINDS = ("scenes", "sections", "indenters", "materials", "receptors")
 
 
 def builtin_dir(kind: str) -> Path:

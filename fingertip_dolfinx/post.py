@@ -87,12 +87,69 @@ class DerivedFields:
             f.x.scatter_forward()
 
 
-def depth_curve(outer, depth: float, half_width: float, n: int) -> tuple[np.ndarray, np.ndarray]:
+class CauchyStress:
+    """The Cauchy stress σ = P Fᵀ / J of each region's own law as a DG1 tensor (MPa), at an
+    accepted state (after `problem.accept()`: where a run's `on_step` is).
+
+    `laws` maps a cell-tag value to that region's law (model.py; `.stress` is P). A law with a
+    history (the skin's QLV) is evaluated with its stored internal variables, P = F (g∞ S_e +
+    Σ g_i h_i): its own `.stress` would advance them once more. σ is evaluated at the quadrature
+    points of the stress integral (`quadrature_degree`, where the QLV history lives) and
+    projected onto P1 cell by cell (least squares with the rule's weights: the local L2
+    projection on affine cells). The pore pressure is not part of any law: the total stress of
+    the subcutaneous tissue is σ − p I.
+    """
+
+    def __init__(self, u: fem.Function, cell_tags: dmesh.MeshTags, laws: dict[int, object],
+                 quadrature_degree: int):
+        import basix
+
+        msh = u.function_space.mesh
+        self.mesh = msh
+        space = fem.functionspace(msh, ("Discontinuous Lagrange", 1, (2, 2)))
+        self.stress = fem.Function(space, name="cauchy_stress")
+        points, weights = basix.make_quadrature(msh.basix_cell(), quadrature_degree)
+        p1 = basix.create_element(basix.ElementFamily.P, msh.basix_cell(), 1,
+                                  discontinuous=True)
+        phi = p1.tabulate(0, points)[0, :, :, 0]  # (points, dofs), the dofs in DG1's order
+        wphi = weights[:, None] * phi
+        self._fit = np.linalg.solve(phi.T @ wphi, wphi.T)  # (dofs, points)
+        F = ufl.Identity(2) + ufl.grad(u)
+        self._plan = []
+        for tag, law in laws.items():
+            cells = cell_tags.find(tag)
+            sigma = accepted_stress(law, F) * F.T / ufl.det(F)
+            self._plan.append((cells, fem.Expression(sigma, points)))
+
+    def update(self) -> None:
+        values = self.stress.x.array.reshape(-1, 4)
+        dofmap = self.stress.function_space.dofmap.list
+        n = self._fit.shape[1]
+        for cells, expr in self._plan:
+            if len(cells):
+                at_points = expr.eval(self.mesh, cells).reshape(len(cells), n, 4)
+                values[dofmap[cells]] = np.einsum("dq,cqk->cdk", self._fit, at_points)
+        self.stress.x.scatter_forward()
+
+
+def accepted_stress(law, F) -> ufl.core.expr.Expr:
+    """P of a region's law at its accepted state: `law.stress`, or for a QLV law F (g∞ S_e +
+    Σ g_i h_i) with the internal variables as stored by the last `accept()`."""
+    qlv = getattr(law, "history", None)
+    if qlv is None:
+        return law.stress
+    prony = qlv.prony
+    return F * (prony.g_inf * qlv.S_e + sum(g * h for g, h in zip(prony.g, qlv.h)))
+
+
+def depth_curve(outer, depth: float, half_width: float, n: int,
+                x: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Points at `depth` below the palmar outer ellipse, along its inward normals.
 
-    Returns (x of the surface points the normals start from, the points (n, 2)).
+    Returns (x of the surface points the normals start from, the points (n, 2)). The surface
+    points are n evenly spaced in |x| <= half_width, or those at the abscissae `x` if given.
     """
-    x = np.linspace(-half_width, half_width, n)
+    x = np.linspace(-half_width, half_width, n) if x is None else np.asarray(x, dtype=float)
     a, b, cy = outer.a, outer.b, outer.cy
     y = cy - b * np.sqrt(np.clip(1 - (x / a) ** 2, 0.0, None))
     normal = np.column_stack([x / a**2, (y - cy) / b**2])

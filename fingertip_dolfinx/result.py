@@ -7,6 +7,7 @@ another machine, is read the same way; nothing needs CSV parsing by hand.
 
 from __future__ import annotations
 
+import csv
 import json
 from functools import cached_property
 from pathlib import Path
@@ -24,6 +25,7 @@ class Result:
     - `history`: per accepted step, columns as arrays (`time_s`, `force_N_per_mm`, ...);
     - `surface`, `depth`: the profiles at the output times, columns as arrays;
     - `fields(t)`: the fields at output time t as arrays (see `post.FieldArrays`);
+    - `receptors()`: the receptor sites' samples per step (receptors.csv), if the run wrote them;
     - shortcuts `time`, `force`, `surface_profile(t)`, `depth_profile(quantity, depth, t)`.
     """
 
@@ -84,6 +86,17 @@ class Result:
                              f"output times {self.output_times}.")
         return self.depth["x_mm"][rows], self.depth[quantity][rows]
 
+    def receptors(self) -> dict[str, np.ndarray]:
+        """receptors.csv (a run with `output.receptors`) as columns: `time_s`, `class`
+        (strings), `index` (integers), `x_mm`, `depth_mm`, `sed_MPa`, `e_min`, `sigma22_MPa`,
+        `p_MPa`; one row per receptor per accepted step. Rates and spikes:
+        `receptors.afferent_responses(result)`."""
+        path = self.out / "receptors.csv"
+        if not path.exists():
+            raise InputError(str(self.out), "holds no receptors.csv.",
+                             'run the scene with output.receptors = "default" (or a set).')
+        return _read_table(path, text=("class",), integer=("index",))
+
     def fields(self, t: float) -> dict[str, np.ndarray]:
         """The fields at output time t, cell by cell (X, u, region, sed, log_strain, ...)."""
         path = self.out / f"fields_t{t:g}s.npz"
@@ -101,3 +114,22 @@ def load_result(out: str | Path) -> Result:
 
 def _read_if_there(path: Path) -> dict[str, np.ndarray]:
     return read_csv(path) if path.exists() else {}
+
+
+def _read_table(path: Path, text=(), integer=()) -> dict[str, np.ndarray]:
+    """A CSV file's columns: those in `text` as strings, in `integer` as integers, the others
+    as floats (empty cells NaN)."""
+    with path.open() as f:
+        rows = list(csv.DictReader(f))
+    if not rows:
+        return {}
+
+    def column(k):
+        values = [r[k] for r in rows]
+        if k in text:
+            return np.array(values)
+        if k in integer:
+            return np.array([int(v) for v in values])
+        return np.array([float(v) if v != "" else np.nan for v in values])
+
+    return {k: column(k) for k in rows[0]}

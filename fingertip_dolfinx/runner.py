@@ -5,6 +5,7 @@ steps and at output times) and a checkpoint (one .npz per rank) from which `--re
 continues. At output times: the pulp-surface deflection, the depth profiles, the fields as
 arrays (`fields_t<t>s.npz`) and their pictures. At the end (or at a failure): summary.json and
 the figures. `run_scene` returns a `Result` (result.py) that holds all of it as arrays.
+With `output.receptors`, every step also adds the receptor sites' rows to receptors.csv.
 """
 
 from __future__ import annotations
@@ -35,6 +36,7 @@ from .outputs import (
 from .pictures import field_pictures
 from .post import DerivedFields, FieldArrays, Profiles
 from .problem import FingertipProblem
+from .receptors import ReceptorRecorder, load_receptors
 from .result import Result
 from .scene import Scene, scene_record
 from .solver import TimeStepper
@@ -95,6 +97,7 @@ class Run:
     def __init__(self, scene: Scene, out: Path, comm: MPI.Comm, *, resume: bool,
                  progress: bool):
         self.scene, self.comm, self.progress = scene, comm, progress
+        receptors = load_receptors(scene.outputs.receptors) if scene.outputs.receptors else None
         self.out = prepare_directory(out, comm)
         self.fm = build_mesh(scene.section, comm)
         if not resume:
@@ -118,6 +121,8 @@ class Run:
                                      self.problem.region_energies())
         self.profiles = Profiles(self.problem, self.derived, scene.section.outer, scene.outputs)
         self.arrays = FieldArrays(self.problem, self.derived)
+        self.receptors = None if receptors is None else ReceptorRecorder(
+            self.problem, self.derived, receptors, scene.section.outer, self.out, comm, after)
         self.fields = FieldWriters(self.out, comm, self._vtx_fields(),
                                    suffix=f"-from-{self.start_time:g}s" if resume else "")
         self._last_state = (self.start_time, [f.x.array.copy() for f in self.problem.unknowns])
@@ -181,6 +186,8 @@ class Run:
             self.fields.write(report.time)
         if at_output:
             self._write_output_time(report.time)
+        if self.receptors is not None:
+            self.receptors.write(report.time)
         self._save_checkpoint(report)
         self._show(report)
 
@@ -210,8 +217,9 @@ class Run:
     # --- the end ---------------------------------------------------------------------------
     def finish(self, converged: bool, failure: str | None, wall: float) -> dict:
         """Close every file, write summary.json and draw the figures; returns the summary."""
-        for log in (self.history, self.surface, self.depth):
-            log.close()
+        for log in (self.history, self.surface, self.depth, self.receptors):
+            if log is not None:
+                log.close()
         self.fields.close()
         self.stepper.close()
         self.comm.barrier()

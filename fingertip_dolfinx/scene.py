@@ -36,7 +36,9 @@ class Outputs:
     """What a run writes besides its history: profiles and pictures at `times` (s), along
     curves at `depths` (mm below the undeformed outer surface) over |x| <= profile_half_width,
     sampled at `profile_points`; fields for ParaView every `field_every` steps; `pictures =
-    false` skips the PNG figures (a sweep of many runs may want only the numbers)."""
+    false` skips the PNG figures (a sweep of many runs may want only the numbers); `receptors`
+    names a receptor set (`"default"` or a path, `data/receptors/`) whose sites are sampled at
+    every step into receptors.csv ("" or false: none)."""
 
     times: tuple[float, ...] = ()
     depths: tuple[float, ...] = (0.5, 0.75, 1.0)
@@ -44,10 +46,21 @@ class Outputs:
     profile_points: int = 241
     field_every: int = 1
     pictures: bool = True
+    receptors: str = ""
 
     def __post_init__(self):
         if not isinstance(self.pictures, bool):
             raise InputError("output.pictures", f"got {self.pictures!r}.", "use true or false.")
+        if self.receptors is False:
+            object.__setattr__(self, "receptors", "")
+        if not isinstance(self.receptors, str):
+            raise InputError("output.receptors", f"got {self.receptors!r}.",
+                             'name a receptor set ("default" or a path), or use false.')
+        if self.receptors:
+            try:
+                find("receptors", self.receptors, "receptor set")
+            except InputError as error:
+                raise InputError("output.receptors", error.problem, error.fix) from None
         object.__setattr__(self, "times", tuple(float(t) for t in self.times))
         object.__setattr__(self, "depths", tuple(float(d) for d in self.depths))
         if any(d <= 0 for d in self.depths):
