@@ -31,6 +31,12 @@ class PointSampler:
         data = geometry.determine_point_ownership(msh, mine, padding)
         self._points = np.asarray(data.dest_points).reshape(-1, 3)
         self._cells = np.asarray(data.dest_cells, dtype=np.int32)
+        # A point outside every cell is still handed to the closest one (on a submesh: the
+        # pore pressure "at" points in the skin): keep only the points in (or on) their cell.
+        self._inside = np.ones(len(self._cells), dtype=bool)
+        if len(self._cells):
+            d2 = geometry.squared_distance(msh, msh.topology.dim, self._cells, self._points)
+            self._inside = d2 <= max(padding, 1e-12) ** 2
         # On rank 0: which rank evaluates each point (-1: outside the mesh). A rank receives
         # its points in the order rank 0 sent them.
         self._owner = np.asarray(data.src_owner) if self.comm.rank == 0 else None
@@ -42,6 +48,7 @@ class PointSampler:
         size = int(np.prod(shape)) if shape else 1
         values = (f.eval(self._points, self._cells).reshape(-1, size) if len(self._cells)
                   else np.zeros((0, size)))
+        values[~self._inside] = np.nan
         gathered = self.comm.gather(values, root=0)
         if self.comm.rank != 0:
             return None
