@@ -54,6 +54,9 @@ _API = {
     # the model, the problem and the solver, for those who build their own runs
     "ModelOptions": "model", "FingertipProblem": "problem",
     "StepOptions": "solver", "TimeStepper": "solver",
+    # receptor sites and afferent models
+    "load_receptors": "receptors", "ReceptorPopulation": "receptors",
+    "afferent_responses": "receptors",
     # errors
     "FingertipError": "errors", "InputError": "errors", "ConvergenceError": "errors",
     "CompactionError": "errors",
