@@ -294,3 +294,40 @@ def test_a_rejected_doubled_step_restores_the_whole_state():
     for name, a in column.state_arrays().items():
         assert np.array_equal(a, saved[name]), name
     assert any(np.any(a != 0) for n, a in saved.items() if n.startswith("qlv"))
+
+
+class _Stop(Exception):
+    pass
+
+
+def test_a_resumed_error_controlled_run_continues_within_the_tolerance():
+    """Stopped after 30 steps and resumed from the state and the one before it (what a
+    checkpoint holds): the resumed run takes one backward-Euler step (its u_{n−1} may be a
+    half step of a doubled step) and goes on with BDF2; its force at the end agrees with the
+    uninterrupted run's to the tolerance."""
+    history = RampHold(0.01, 100.0, 300.0)
+    options = StepOptions(control="error", scheme="bdf2", rtol=1e-3, atol=1e-12, dt_max=300.0)
+
+    def column():
+        return ConfinedBlock(1, 20, history, tissue=mat.SUBCUTANEOUS_BIPHASIC, width=0.1,
+                             drained_top=True, top_displacement=True)
+
+    whole = column()
+    reports = TimeStepper(whole, options, prefix="whole_").run(history, history.end_time)
+    stopped = column()
+    states = []
+
+    def stop(report):
+        states.append((report.time, [f.x.array.copy() for f in stopped.unknowns]))
+        if len(states) == 30:
+            raise _Stop
+
+    with pytest.raises(_Stop):
+        TimeStepper(stopped, options, prefix="stopped_").run(history, history.end_time,
+                                                            on_step=stop)
+    resumed = TimeStepper(stopped, options, prefix="resumed_").run(
+        history, history.end_time, start_time=states[-1][0], previous=states[-2])
+    assert resumed[0].error <= 1 and resumed[-1].time == history.end_time
+    peak = max(abs(r.diagnostics["reaction"]) for r in reports)
+    end = reports[-1].diagnostics["reaction"]
+    assert abs(resumed[-1].diagnostics["reaction"] - end) < 2e-3 * peak
