@@ -15,6 +15,9 @@ and the pore law of the subcutaneous tissue, the pressure part of the problem (p
     undrained  ∫ (J − J_n) q dX = 0                                      no flow: J = J_n
     drained    no pressure unknown (p = 0)
 
+(the biphasic J − J_n is backward Euler's Δt·dJ/dt; under BDF2 the time stepper's weights make
+it a₀ J + a₁ J_n + a₂ J_{n−1}).
+
 The laws per `options.tissue`:
 
     layered     skin: hyperfoam, with QLV if `skin_viscoelastic` and the skin has a Prony series
@@ -228,23 +231,32 @@ class RigidRegion:
 
 
 class BiphasicFlow:
-    """Darcy flow through the solid: ∫ (J − J_n) q + Δt J k(J) C⁻¹ Grad p · Grad q dX."""
+    """Darcy flow through the solid: ∫ (J − J_n) q + Δt J k(J) C⁻¹ Grad p · Grad q dX, the
+    volume change J − J_n by the time stepper's multistep weights (a₀ J + a₁ J_n + a₂ J_{n−1}:
+    backward Euler or BDF2, poroelasticity.volume_change)."""
+
+    #: The law has a time derivative (dJ/dt): its history is u_n and u_{n−1}.
+    has_rate = True
 
     def __init__(self, material: Biphasic):
         self.material = material
         self.phi0 = material.phi0
 
-    def residual(self, u, p, u_n, q, dt, dx) -> ufl.Form:
-        return mass_residual(u, p, u_n, q, dt, self.material, dx)
+    def residual(self, u, p, u_n, q, dt, dx, u_nm1=None, weights=None) -> ufl.Form:
+        return mass_residual(u, p, u_n, q, dt, self.material, dx, u_nm1, weights)
 
 
 class Undrained:
-    """No flow at all: the volume of every piece of tissue is kept, ∫ (J − J_n) q dX = 0."""
+    """No flow at all: the volume of every piece of tissue is kept, ∫ (J − J_n) q dX = 0.
+
+    Algebraic (J = J_n = 1): exact under any time scheme, so it takes no multistep weights."""
+
+    has_rate = False
 
     def __init__(self, material: Biphasic):
         self.phi0 = material.phi0
 
-    def residual(self, u, p, u_n, q, dt, dx) -> ufl.Form:
+    def residual(self, u, p, u_n, q, dt, dx, u_nm1=None, weights=None) -> ufl.Form:
         J = ufl.det(deformation_gradient(u))
         return (J - ufl.det(deformation_gradient(u_n))) * q * dx
 

@@ -5,6 +5,11 @@ Unknowns u (displacement) and p (pore pressure), reference configuration, backwa
     solid:  ∫ (P_e − p J F⁻ᵀ) : Grad v dX                                       = loads
     fluid:  ∫ (J − J_n) q + Δt J k(J) C⁻¹ Grad p · Grad q dX                    = −Δt ∫ Q·N q
 
+or, with the weights (a₀, a₁, a₂) of a multistep formula for Δt·dJ/dt, the volume change
+J − J_n becomes a₀ J + a₁ J_n + a₂ J_{n−1}: (1, −1, 0) is backward Euler, and variable-step
+BDF2 with ω = Δt_n/Δt_{n−1} has a₀ = (1 + 2ω)/(1 + ω), a₁ = −(1 + ω), a₂ = ω²/(1 + ω)
+(`volume_change`; the time stepper sets the weights, a `fem.Constant`, every step).
+
 The fluid flux is the Piola pull-back of Darcy's law w = −k grad p, W = J F⁻¹ w =
 −J k C⁻¹ Grad p, so the mass balance is exact at finite strain (the small-strain balance
 div(u̇) − div(k grad p), often paired with a hyperelastic solid, is not). The pressure is the
@@ -37,20 +42,36 @@ def solid_residual(u, p, v, material: Biphasic, dx, P_e=None) -> ufl.Form:
     return ufl.inner(total_first_piola(u, p, material, P_e), ufl.grad(v)) * dx
 
 
-def mass_residual(u, p, u_n, q, dt, material: Biphasic, dx) -> ufl.Form:
-    """Δt × (fluid mass balance): ∫ (J − J_n) q + Δt J k(J) C⁻¹ Grad p · Grad q dX."""
+def volume_change(u, u_n, u_nm1=None, weights=None) -> ufl.core.expr.Expr:
+    """Δt·dJ/dt at t_{n+1}: J − J_n (backward Euler), or a₀ J + a₁ J_n + a₂ J_{n−1} with the
+    `weights` (a₀, a₁, a₂) (a `fem.Constant` of shape (3,)) and the displacement `u_nm1` of
+    t_{n−1}. With the weights (1, −1, 0) the two agree to the last bit."""
+    J = ufl.det(deformation_gradient(u))
+    J_n = ufl.det(deformation_gradient(u_n))
+    if weights is None:
+        return J - J_n
+    J_nm1 = ufl.det(deformation_gradient(u_nm1))
+    return weights[0] * J + weights[1] * J_n + weights[2] * J_nm1
+
+
+def mass_residual(u, p, u_n, q, dt, material: Biphasic, dx, u_nm1=None,
+                  weights=None) -> ufl.Form:
+    """Δt × (fluid mass balance): ∫ (J − J_n) q + Δt J k(J) C⁻¹ Grad p · Grad q dX, the volume
+    change J − J_n by the multistep `weights` if given (`volume_change`)."""
     F = deformation_gradient(u)
     J = ufl.det(F)
-    J_n = ufl.det(deformation_gradient(u_n))
     k = material.permeability.permeability(J)
     Cinv = ufl.inv(right_cauchy_green(F))
-    return ((J - J_n) * q + dt * J * k * ufl.inner(Cinv * ufl.grad(p), ufl.grad(q))) * dx
+    change = volume_change(u, u_n, u_nm1, weights)
+    return (change * q + dt * J * k * ufl.inner(Cinv * ufl.grad(p), ufl.grad(q))) * dx
 
 
-def biphasic_residuals(u, p, u_n, v, q, dt, material: Biphasic, dx, P_e=None):
-    """(solid, fluid) residual forms of one backward-Euler step on the region `dx`."""
+def biphasic_residuals(u, p, u_n, v, q, dt, material: Biphasic, dx, P_e=None, u_nm1=None,
+                       weights=None):
+    """(solid, fluid) residual forms of one step on the region `dx` (backward Euler, or the
+    multistep `weights` with `u_nm1`)."""
     return (solid_residual(u, p, v, material, dx, P_e),
-            mass_residual(u, p, u_n, q, dt, material, dx))
+            mass_residual(u, p, u_n, q, dt, material, dx, u_nm1, weights))
 
 
 def drained_first_piola(u, material: Biphasic) -> ufl.core.expr.Expr:

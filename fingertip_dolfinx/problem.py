@@ -12,6 +12,9 @@ with P_r the first Piola–Kirchhoff stress of region r's law (model.py: P_skin 
 history of the hyperfoam stress; P_sub the drained hyperfoam stress of the solid; bone and nail
 St Venant–Kirchhoff; rigid regions 0) and p_c the Nitsche contact pressure of the rigid
 indenters on the pulp (contact.py). Undrained, the mass balance is ∫_sub (J − J_n) q dX = 0.
+A BDF2 step (solver.StepOptions.scheme) replaces the biphasic J − J_n by a₀ J + a₁ J_n +
+a₂ J_{n−1} (`rate_weights`, `u_nm1`); every other part is quasi-static or keeps its own exact
+recursion (the skin's QLV history).
 Every boundary not in contact is traction-free; the subcutaneous boundary is impermeable (zero
 flux is the natural condition).
 
@@ -95,6 +98,11 @@ class FingertipProblem:
         self.V = fem.functionspace(msh, ("Lagrange", options.displacement_degree, (2,)))
         self.u = fem.Function(self.V, name="displacement")
         self.u_n = fem.Function(self.V, name="displacement_n")
+        #: u at t_{n−1} and the weights (a₀, a₁, a₂) of J_{n+1}, J_n, J_{n−1} in Δt·dJ/dt of
+        #: the biphasic mass balance: backward Euler (1, −1, 0) until the time stepper sets
+        #: BDF2's (solver.bdf2_weights). A Constant: switching schemes never recompiles.
+        self.u_nm1 = fem.Function(self.V, name="displacement_nm1")
+        self.rate_weights = fem.Constant(msh, np.array([1.0, -1.0, 0.0]))
         self.F = deformation_gradient(self.u)
         cells = {r: fmesh.cell_tags.find(self.tags[r]) for r in REGIONS}
         self.laws = compose_laws(tissues, options, State(
@@ -143,7 +151,8 @@ class FingertipProblem:
         F = self.F
         coupling = -(ufl.inner(self.p * ufl.det(F) * ufl.inv(F).T, ufl.grad(v)) * dx_sub)
         q = ufl.TestFunction(Q)
-        return coupling, [pore.residual(self.u, self.p, self.u_n, q, self.dt, dx_sub)]
+        return coupling, [pore.residual(self.u, self.p, self.u_n, q, self.dt, dx_sub,
+                                        self.u_nm1, self.rate_weights)]
 
     def _contact(self, v) -> ufl.Form:
         """The rigid indenters on the pulp: −∫_pulp p_c n·v dS (contact.NitscheContact), with
@@ -190,11 +199,14 @@ class FingertipProblem:
 
     def state_arrays(self) -> dict[str, np.ndarray]:
         """The arrays that define the state, by their checkpoint names: u, u_n, p (if any),
-        qlv_h{i} and qlv_S_e_n (if the skin is viscoelastic). They are the live arrays:
-        writing into them sets the state (then scatter_forward the unknowns, mark_accepted)."""
+        u_nm1 (if the pore law has a rate: biphasic, for BDF2), qlv_h{i} and qlv_S_e_n (if the
+        skin is viscoelastic). They are the live arrays: writing into them sets the state
+        (then scatter_forward the unknowns, mark_accepted)."""
         arrays = {"u": self.u.x.array, "u_n": self.u_n.x.array}
         if self.p is not None:
             arrays["p"] = self.p.x.array
+        if getattr(self.laws.pore, "has_rate", False):
+            arrays["u_nm1"] = self.u_nm1.x.array
         return arrays | self.laws.history_arrays()
 
     def region_energies(self) -> dict[int, ufl.core.expr.Expr]:
@@ -224,6 +236,7 @@ class FingertipProblem:
     def accept(self) -> None:
         for law in self.laws.with_history():
             law.history.advance()
+        self.u_nm1.x.array[:] = self.u_n.x.array
         self.u_n.x.array[:] = self.u.x.array
         self._last = [f.x.array.copy() for f in self.unknowns]
 

@@ -1,14 +1,35 @@
 """Implicit time stepping with PETSc SNES: adaptive steps, cuts on failure, clear errors.
 
-Every step solves the full nonlinear system R(u_{n+1}; u_n, Δt) = 0 (backward Euler in the
-history terms) with Newton's method. The step grows while Newton converges easily and is cut
+Every step solves the full nonlinear system R(u_{n+1}; u_n, Δt) = 0 with Newton's method.
+The model's one time derivative, dJ/dt in the biphasic mass balance, is integrated by
+backward Euler (first order, the default) or variable-step BDF2 (second order;
+`StepOptions.scheme`): the problem's `rate_weights` (a₀, a₁, a₂) make Δt·dJ/dt ≈ a₀ J_{n+1}
++ a₁ J_n + a₂ J_{n−1}. BDF2's first step, and the first after every kink of the load, are
+backward Euler. The skin's QLV history keeps its own recursion (exact for a stress linear over
+the step: second order for a smooth one); elasticity and contact are quasi-static.
+
+Step sizes (`StepOptions.control`):
+
+- "iterations" (the default): the step grows ×`growth` while Newton converges easily
+  (≤ `easy_iterations`), whatever the error, up to `dt_max`.
+- "error": each step's local time-integration error is estimated and kept below the
+  tolerance: for every unknown field f, max |e_f| ≤ atol + rtol·(the largest |f| reached so
+  far). e is Milne's estimate K/(K − K_p)·(x − x_pred) from the difference between the
+  corrector x and the polynomial predictor x_pred through the last states (linear for
+  backward Euler, quadratic for BDF2; K, K_p their error constants at the actual step
+  ratios). The first step, and the first after a kink of the load, where no smooth history
+  exists, is checked by step doubling (one step against two half steps; the halves are
+  kept). A step whose error exceeds the tolerance (err > 1) is redone; the next step is
+  Δt·min(growth, max(0.2, safety·err^(−1/(k+1)))), k the order.
+
+In both, steps land exactly on every breakpoint of the load and output time, and a step is cut
 when it fails (divergence, NaN, inverted elements); after `max_cuts` cuts in a row the run
 stops with a message that says when, where and why. Compaction of a porous tissue (J within
 the margin of its solid fraction φ0, at a quadrature point or a node) is a physical limit, not
 a numerical one: the run stops at once with a `CompactionError` (also when Newton's residual
 turns non-finite twice in a step at an iterate whose pores closed). Times in the messages carry
-the digits that tell t and t + Δt apart. Forms are compiled once: time, step size and loads are
-`fem.Constant`s that the problem updates in place.
+the digits that tell t and t + Δt apart. Forms are compiled once: time, step size, loads and
+multistep weights are `fem.Constant`s the problem updates in place.
 """
 
 from __future__ import annotations
@@ -42,6 +63,14 @@ DEFAULT_PETSC_OPTIONS = {
     "pc_type": "lu",
     "pc_factor_mat_solver_type": "mumps",
 }
+
+CONTROLS = ("iterations", "error")
+SCHEMES = ("backward-euler", "bdf2")
+#: Variable-step BDF2 is zero-stable for step ratios ω = Δt_n/Δt_{n−1} < 1 + √2.
+BDF2_GROWTH_LIMIT = 1 + math.sqrt(2)
+#: The smallest factor by which error control shrinks a step it rejects or follows.
+ERROR_CUT_MIN = 0.2
+BACKWARD_EULER = (1.0, -1.0, 0.0)
 
 _SNES_REASONS = {
     getattr(PETSc.SNES.ConvergedReason, name): name
@@ -79,6 +108,12 @@ class Steppable(Protocol):
     def diagnostics(self) -> dict[str, float]:
         """Per-step quantities of the converged state, before `accept`: force, min J, ..."""
 
+    # Optional. `rate_weights`: a fem.Constant (a₀, a₁, a₂) that the residual uses as
+    # Δt·dJ/dt ≈ a₀ J_{n+1} + a₁ J_n + a₂ J_{n−1} (J_{n−1} from the state before u_n, which
+    # `accept` keeps); the stepper sets it every step (a problem without a rate has none).
+    # `state_arrays()` (live arrays of the whole state, history included) and
+    # `mark_accepted()`: error control saves and restores the state around a doubled step.
+
 
 @dataclass
 class StepOptions:
@@ -94,12 +129,36 @@ class StepOptions:
     #: Start Newton from the linear extrapolation of the last two states (not across a kink
     #: of the load history): in a ramp this removes most of the iterations.
     extrapolate: bool = True
+    #: "iterations": grow by `growth` after easy steps. "error": steps chosen by their
+    #: estimated local time-integration error (rtol, atol); `growth` is then the largest
+    #: factor from one step to the next.
+    control: str = "iterations"
+    #: "backward-euler" (first order) or "bdf2" (variable-step BDF2, second order) for the
+    #: biphasic mass balance.
+    scheme: str = "backward-euler"
+    #: Error control: per unknown field, max |local error| <= atol + rtol * (largest |value|
+    #: the field has reached). atol in the unknowns' units, mm (displacement) and MPa
+    #: (pressure): the floor that keeps the first steps from rest, where every field is still
+    #: tiny, from asking more than Newton's own accuracy (its residual tolerance, snes_atol).
+    rtol: float = 1e-3
+    atol: float = 1e-6
+    safety: float = 0.9  # the next step aims at safety × the tolerance
 
     def __post_init__(self):
         if not 0 < self.dt_min <= self.dt_initial <= self.dt_max:
             raise ValueError("need 0 < dt_min <= dt_initial <= dt_max")
         if not (self.growth >= 1 and 0 < self.cut < 1 and self.max_cuts >= 0):
             raise ValueError("need growth >= 1, 0 < cut < 1, max_cuts >= 0")
+        if self.control not in CONTROLS:
+            raise ValueError(f"control must be one of {CONTROLS}, got {self.control!r}")
+        if self.scheme not in SCHEMES:
+            raise ValueError(f"scheme must be one of {SCHEMES}, got {self.scheme!r}")
+        if not (self.rtol >= 0 and self.atol >= 0 and self.rtol + self.atol > 0
+                and 0 < self.safety <= 1):
+            raise ValueError("need rtol >= 0, atol >= 0, rtol + atol > 0, 0 < safety <= 1")
+        if self.scheme == "bdf2" and not self.growth < BDF2_GROWTH_LIMIT:
+            raise ValueError(f"BDF2 is unstable for step ratios above 1 + √2: need growth < "
+                             f"{BDF2_GROWTH_LIMIT:.4f}, got {self.growth}")
 
 
 @dataclass
@@ -113,6 +172,10 @@ class StepReport:
     wall_time_s: float
     diagnostics: dict[str, float] = field(default_factory=dict)
     next_dt: float = math.nan  # the step size planned next (a checkpoint stores it)
+    #: Error control: the accepted step's error estimate over the tolerance (<= 1), and the
+    #: attempts redone because it was above.
+    error: float = math.nan
+    rejected: int = 0
 
     def row(self) -> dict[str, float]:
         row = asdict(self)
@@ -121,7 +184,7 @@ class StepReport:
 
 
 class TimeStepper:
-    """Drives a `Steppable` problem along a load history with adaptive backward-Euler steps."""
+    """Drives a `Steppable` problem along a load history with adaptive implicit steps."""
 
     def __init__(
         self,
@@ -203,27 +266,69 @@ class TimeStepper:
         """
         opts, problem = self.options, self.problem
         marks = sorted({*getattr(history, "breakpoints", ()), *breakpoints, end_time})
+        # Where the load has a kink, the multistep history restarts (output times are no kinks).
+        kinks = sorted({*getattr(history, "breakpoints", ()), start_time})
+        error_control = opts.control == "error"
         t, dt, step = start_time, opts.dt_initial, 0
         reports: list[StepReport] = []
         # The last two accepted states (time, unknowns), for the predictor.
         states = deque([(t, [f.x.array.copy() for f in problem.unknowns])], maxlen=2)
         if previous is not None:
             states.appendleft(previous)
+        # The accepted states since the last kink (at most 3), for BDF2 and the error estimate;
+        # `own`: steps since then taken here, whose u_{n−1} the problem holds.
+        since = deque(states if previous is not None and not _is_mark(t, kinks) else
+                      [states[-1]], maxlen=3)
+        own = 0
+        self._peaks = [_max_abs(f) for f in problem.unknowns]
         while t < end_time - 1e-12 * max(1.0, end_time):
             started = wallclock.perf_counter()
             cuts, why, closed_iterates = 0, "", 0
+            rejected, extra_iterations = 0, 0
+            restart = error_control and len(since) == 1
+            saved = _save(problem) if restart else None
             while True:
                 t_new = step_times(marks, t, dt, end_time)
                 problem.dt.value = t_new - t
                 problem.set_time(t_new)
-                if opts.extrapolate and len(states) == 2 and not _is_mark(t, marks):
+                plan = self._prepare(since, own, t_new)
+                if error_control:
+                    if opts.extrapolate and plan.predictor is not None:
+                        _assign(problem.unknowns, plan.predictor)
+                elif opts.extrapolate and len(states) == 2 and not _is_mark(t, marks):
                     _extrapolate(problem.unknowns, states, t_new)
                 reason, iterations = self.solve_once()
                 compacted = None
                 if reason > 0:
                     why = (problem.inadmissible() or "").rstrip(".")
                     if not why:
-                        break
+                        if not error_control:
+                            break
+                        if restart:
+                            err, middle, more = self._double(t, t_new, saved, since[-1][1])
+                            iterations += more
+                        else:
+                            err, middle = self._norm(plan), None
+                        if err <= 1:
+                            break
+                        problem.restore()
+                        rejected += 1
+                        extra_iterations += iterations
+                        dt = (t_new - t) * _factor(err, plan.order, opts.safety, 1.0)
+                        if step_times(marks, t, dt, end_time) >= t_new:  # stretched back
+                            dt = 0.75 * (t_new - t)
+                        if dt < opts.dt_min:
+                            problem.set_time(t)
+                            raise ConvergenceError(
+                                f"the step from t = {t:.6g} s keeps a time-integration error "
+                                f"{err:.3g} times the tolerance at Δt = {t_new - t:.3g} s, and "
+                                f"a smaller step would be below dt_min = {opts.dt_min:g} s. "
+                                f"Results up to t = {t:.6g} s are saved. Fix: loosen steps.rtol "
+                                "and steps.atol, or lower steps.dt_min; an error that does not "
+                                "shrink with the step is Newton's own: tighten the solver's "
+                                "snes_atol and snes_rtol."
+                            )
+                        continue
                     compacted = _compacted(problem)  # a solution: the limit is reached
                 else:
                     why = f"Newton did not converge ({_SNES_REASONS.get(reason, reason)})"
@@ -265,25 +370,38 @@ class TimeStepper:
             # describe the start of the next step, not the state just solved.
             diagnostics = problem.diagnostics()
             problem.accept()
-            states.append((t_new, [f.x.array.copy() for f in problem.unknowns]))
+            new_state = (t_new, [f.x.array.copy() for f in problem.unknowns])
+            states.append(new_state)
             step += 1
             report = StepReport(
                 step=step,
                 time=t_new,
                 dt=t_new - t,
                 load=history(t_new),
-                newton_iterations=iterations,
+                newton_iterations=iterations + extra_iterations,
                 cuts=cuts,
                 wall_time_s=wallclock.perf_counter() - started,
                 diagnostics=diagnostics,
+                error=err if error_control else math.nan,
+                rejected=rejected,
             )
-            # Grow after easy steps, keep the size after hard ones (cuts already shrank it).
-            taken = t_new - t
+            taken, planned = t_new - t, dt
             t = t_new
-            if cuts == 0 and iterations <= opts.easy_iterations:
+            if error_control:
+                dt = self._next_dt(err, plan.order, taken, planned, middle is not None,
+                                   cuts > 0)
+                self._peaks = [max(a, _max_abs(f)) for a, f in zip(self._peaks, problem.unknowns)]
+            # Grow after easy steps, keep the size after hard ones (cuts already shrank it).
+            elif cuts == 0 and iterations <= opts.easy_iterations:
                 dt = min(max(dt, taken) * opts.growth, opts.dt_max)
             else:
                 dt = min(taken, opts.dt_max)
+            if error_control and middle is not None:
+                since.append(middle)
+            since.append(new_state)
+            own += 1
+            if _is_mark(t, kinks):
+                since, own = deque([new_state], maxlen=3), 0
             report.next_dt = dt
             reports.append(report)
             if on_step is not None:
@@ -291,6 +409,188 @@ class TimeStepper:
             if not math.isfinite(dt) or dt <= 0:
                 raise FingertipError(f"time step became {dt} at t = {t}")
         return reports
+
+    # --- the integrator and the error control --------------------------------------------------
+    def _prepare(self, since: deque, own: int, t_new: float) -> _Plan:
+        """Set the multistep weights of the step to `t_new` (BDF2 once the problem holds a
+        u_{n−1} since the last kink, else backward Euler) and, under error control, plan its
+        error estimate: the predictor through the last states and Milne's factor."""
+        opts, problem = self.options, self.problem
+        times = [s[0] for s in since]
+        dts = [t_new - times[-1], *np.diff(times)[::-1]]  # Δt_n, Δt_{n−1}, ...
+        needed = 3 if opts.control == "error" else 2
+        bdf2 = opts.scheme == "bdf2" and own >= 1 and len(since) >= needed
+        weights = getattr(problem, "rate_weights", None)
+        if weights is not None:
+            weights.value[:] = bdf2_weights(dts[0] / dts[1]) if bdf2 else BACKWARD_EULER
+        if opts.control != "error" or len(since) == 1:
+            return _Plan(order=1)
+        order = 2 if bdf2 else 1
+        points = list(since)[-(order + 1):]
+        return _Plan(order=order, predictor=_lagrange(points, t_new),
+                     factor=milne_factor(order, dts[: order + 1]))
+
+    def _error_of(self, differences: list[np.ndarray], factor: float = 1.0) -> float:
+        """max over the unknown fields f of max|factor·d_f| / (atol + rtol·(largest |f|)),
+        over every rank (owned dofs)."""
+        opts, worst = self.options, 0.0
+        for f, d, peak in zip(self.problem.unknowns, differences, self._peaks):
+            owned = _owned(f)
+            local = float(np.max(np.abs(d[:owned]), initial=0.0))
+            scale = max(peak, _max_abs(f))
+            comm = f.function_space.mesh.comm
+            e = comm.allreduce(local, op=MPI.MAX) * abs(factor) / (opts.atol + opts.rtol * scale)
+            worst = max(worst, e if math.isfinite(e) else math.inf)
+        return worst
+
+    def _norm(self, plan: _Plan) -> float:
+        """The error of the converged step: Milne's factor × (corrector − predictor)."""
+        differences = [f.x.array - x for f, x in zip(self.problem.unknowns, plan.predictor)]
+        return self._error_of(differences, plan.factor)
+
+    def _double(self, t: float, t_new: float, saved: dict, start: list[np.ndarray]
+                ) -> tuple[float, tuple | None, int]:
+        """Step doubling for a step without a smooth history (the first, or the first after a
+        kink): the unknowns hold one backward-Euler step t → t_new; redo it as two half steps
+        from the state `saved` at t and compare. Returns the error of the halves (which are
+        kept: the state at t_new, the history advanced over the first half), the state at the
+        midpoint, and the Newton iterations. A failed or rejected pair restores `saved`."""
+        problem = self.problem
+        full = [f.x.array.copy() for f in problem.unknowns]
+        _restore(problem, saved)
+        t_mid = 0.5 * (t + t_new)
+        problem.dt.value = t_new - t_mid
+        middle, iterations = None, 0
+        for target, guess in ((t_mid, [0.5 * (a + b) for a, b in zip(start, full)]),
+                              (t_new, full)):
+            problem.set_time(target)
+            if self.options.extrapolate:
+                _assign(problem.unknowns, guess)
+            reason, its = self.solve_once()
+            iterations += its
+            if reason <= 0 or problem.inadmissible():
+                _restore(problem, saved)
+                return math.inf, None, iterations
+            if middle is None:
+                middle = (t_mid, [f.x.array.copy() for f in problem.unknowns])
+                problem.accept()
+        err = self._error_of([f.x.array - x for f, x in zip(problem.unknowns, full)])
+        if err > 1:
+            _restore(problem, saved)
+            return err, None, iterations
+        return err, middle, iterations
+
+    def _next_dt(self, err: float, order: int, taken: float, planned: float, doubled: bool,
+                 hard: bool) -> float:
+        """The step after an accepted one under error control."""
+        opts = self.options
+        if doubled:  # two halves of `taken`: one step Δt errs about 2 err (Δt/taken)² as much
+            last = 0.5 * taken
+            dt = min(taken / math.sqrt(2.0) * _factor(err, 1, opts.safety, math.inf),
+                     opts.growth * last)
+        else:
+            last = taken
+            dt = taken * _factor(err, order, opts.safety, opts.growth)
+            if planned > taken * (1 + 1e-9) and dt >= taken:  # cut short by a breakpoint
+                dt = max(dt, planned)
+        if opts.scheme == "bdf2":
+            dt = min(dt, opts.growth * last)  # BDF2's step ratio stays below 1 + √2
+        if hard:
+            dt = min(dt, taken)
+        return min(dt, opts.dt_max)
+
+
+def _is_mark(t: float, marks: Sequence[float]) -> bool:
+    return any(abs(t - m) <= 1e-12 * max(1.0, abs(m)) for m in marks)
+
+
+def _extrapolate(unknowns: list[fem.Function], states: deque, t_new: float) -> None:
+    """Set the unknowns to the linear extrapolation through the last two accepted states."""
+    (t0, old), (t1, last) = states
+    c = (t_new - t1) / (t1 - t0)
+    for f, a, b in zip(unknowns, old, last):
+        f.x.array[:] = b + c * (b - a)
+
+
+def _lagrange(points: list, t_new: float) -> list[np.ndarray]:
+    """The polynomial through the accepted states `points` (time, arrays), at t_new."""
+    times = [tp for tp, _ in points]
+    weights = [math.prod((t_new - tm) / (tj - tm) for m, tm in enumerate(times) if m != j)
+               for j, tj in enumerate(times)]
+    return [sum(w * arrays[i] for w, (_, arrays) in zip(weights, points))
+            for i in range(len(points[0][1]))]
+
+
+def bdf2_weights(omega: float) -> tuple[float, float, float]:
+    """(a₀, a₁, a₂) of variable-step BDF2: Δt_n ẋ_{n+1} ≈ a₀ x_{n+1} + a₁ x_n + a₂ x_{n−1},
+    ω = Δt_n/Δt_{n−1}; (3/2, −2, 1/2) at ω = 1. Exact for quadratics."""
+    return ((1 + 2 * omega) / (1 + omega), -(1 + omega), omega**2 / (1 + omega))
+
+
+def milne_factor(order: int, dts) -> float:
+    """K/(K − K_p): the local error of a step from its corrector minus predictor (Milne).
+
+    `dts` = (Δt_n, Δt_{n−1}[, Δt_{n−2}]). Order 1: backward Euler, K = 1/2 (error ≈ K Δt² ẍ),
+    against the linear extrapolation through the last two states, K_p = −(1 + r₁)/2 with
+    r₁ = Δt_{n−1}/Δt_n: 1/(2 + r₁) (1/3 at equal steps). Order 2: BDF2,
+    K = (a₁ + a₂ s³)/(6 a₀) with s = 1 + r₁ (error ≈ K Δt³ x⃛), against the quadratic
+    extrapolation through the last three, K_p = −(1 + r₁)(1 + r₁ + r₂)/6: 2/11 at equal steps.
+    """
+    r = [d / dts[0] for d in dts[1:]]
+    if order == 1:
+        return 1.0 / (2.0 + r[0])
+    a0, a1, a2 = bdf2_weights(1.0 / r[0])
+    K = (a1 + a2 * (1 + r[0]) ** 3) / (6 * a0)
+    K_p = -(1 + r[0]) * (1 + r[0] + r[1]) / 6
+    return K / (K - K_p)
+
+
+def _factor(err: float, order: int, safety: float, largest: float) -> float:
+    """The step-size factor safety·err^(−1/(k+1)), between ERROR_CUT_MIN and `largest`."""
+    if err <= 0:
+        return largest
+    return min(largest, max(ERROR_CUT_MIN, safety * err ** (-1.0 / (order + 1))))
+
+
+def _owned(f: fem.Function) -> int:
+    index_map = f.function_space.dofmap.index_map
+    return index_map.size_local * f.function_space.dofmap.index_map_bs
+
+
+def _max_abs(f: fem.Function) -> float:
+    """max |f| over its owned dofs on every rank."""
+    local = float(np.max(np.abs(f.x.array[: _owned(f)]), initial=0.0))
+    return f.function_space.mesh.comm.allreduce(local, op=MPI.MAX)
+
+
+def _assign(unknowns: list[fem.Function], arrays: list[np.ndarray]) -> None:
+    for f, a in zip(unknowns, arrays):
+        f.x.array[:] = a
+
+
+def _save(problem) -> dict[str, np.ndarray]:
+    """A copy of the whole state (history included): error control's doubled steps need it."""
+    arrays = getattr(problem, "state_arrays", None)
+    if arrays is None:
+        raise FingertipError("error control needs the problem's state_arrays() and "
+                             "mark_accepted() to redo a step: use control = 'iterations'")
+    return {name: a.copy() for name, a in arrays().items()}
+
+
+def _restore(problem, saved: dict[str, np.ndarray]) -> None:
+    for name, a in problem.state_arrays().items():
+        a[:] = saved[name]
+    problem.mark_accepted()
+
+
+@dataclass
+class _Plan:
+    """How a step's error is estimated: its order, the predictor and Milne's factor (none for
+    a step that has no smooth history: the first, or the first after a kink)."""
+
+    order: int
+    predictor: list[np.ndarray] | None = None
+    factor: float = 1.0
 
 
 def _compacted(problem, margin: float | None = None, nodes: bool = True):
@@ -327,15 +627,3 @@ def _distinct(a: float, b: float, digits: int = 6) -> tuple[str, str]:
     if gap > 0 and scale > 0:
         digits = max(digits, min(17, math.ceil(math.log10(scale / gap)) + 2))
     return f"{a:.{digits}g}", f"{b:.{digits}g}"
-
-
-def _is_mark(t: float, marks: Sequence[float]) -> bool:
-    return any(abs(t - m) <= 1e-12 * max(1.0, abs(m)) for m in marks)
-
-
-def _extrapolate(unknowns: list[fem.Function], states: deque, t_new: float) -> None:
-    """Set the unknowns to the linear extrapolation through the last two accepted states."""
-    (t0, old), (t1, last) = states
-    c = (t_new - t1) / (t1 - t0)
-    for f, a, b in zip(unknowns, old, last):
-        f.x.array[:] = b + c * (b - a)

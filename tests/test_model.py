@@ -183,7 +183,7 @@ def _problem(scene, fmesh, tissues=WU2004, **options):
 
 
 @pytest.mark.parametrize(("options", "keys"), [
-    ({}, {"u", "u_n", "p"} | QLV_STATES),
+    ({}, {"u", "u_n", "u_nm1", "p"} | QLV_STATES),  # u_nm1: the biphasic rate (BDF2)
     ({"subcutaneous": "undrained", "skin_viscoelastic": False}, {"u", "u_n", "p"}),
     ({"subcutaneous": "drained"}, {"u", "u_n"} | QLV_STATES),
     ({"tissue": "continuum"}, {"u", "u_n"}),

@@ -190,7 +190,9 @@ class ConfinedBlock:
     viscoelastic. Displacement degree `degree_u`: 2 with the P1 pressure is Taylor–Hood, 1 the
     equal-order pair that fails the inf-sup condition. A tissue is guarded against compaction
     as the fingertip's is (`admissibility`): J ≤ φ0 + `compaction_margin` at a quadrature point
-    or a node stops the time stepper with a `CompactionError`.
+    or a node stops the time stepper with a `CompactionError`. The tissue's mass balance takes
+    the time stepper's multistep weights (`rate_weights`, `u_nm1`: backward Euler or BDF2), as
+    the fingertip's does.
     """
 
     #: The axis along which `grading` shrinks the cells (towards its far end: the drained top).
@@ -209,7 +211,8 @@ class ConfinedBlock:
         self.load_width = width if load_width is None else load_width
         self.top_displacement = top_displacement
         V = fem.functionspace(self.msh, ("Lagrange", degree_u, (2,)))
-        self.u, self.u_n = fem.Function(V), fem.Function(V)
+        self.u, self.u_n, self.u_nm1 = fem.Function(V), fem.Function(V), fem.Function(V)
+        self.rate_weights = fem.Constant(self.msh, np.array([1.0, -1.0, 0.0]))
         self.p = None if tissue is None else fem.Function(
             fem.functionspace(self.msh, ("Lagrange", 1)))
         self.unknowns = [self.u] + ([] if self.p is None else [self.p])
@@ -251,7 +254,8 @@ class ConfinedBlock:
         else:
             q = ufl.TestFunction(self.p.function_space)
             residuals = list(biphasic_residuals(self.u, self.p, self.u_n, v, q, self.dt,
-                                                self.tissue, dx, P_e))
+                                                self.tissue, dx, P_e, self.u_nm1,
+                                                self.rate_weights))
         if not self.top_displacement:
             residuals[0] += self.value * v[1] * self.ds(1)
         return residuals
@@ -285,8 +289,22 @@ class ConfinedBlock:
     def accept(self):
         if self.qlv is not None:
             self.qlv.advance()
+        self.u_nm1.x.array[:] = self.u_n.x.array
         self.u_n.x.array[:] = self.u.x.array
         self._last = [f.x.array.copy() for f in self.unknowns]
+
+    def mark_accepted(self):
+        self._last = [f.x.array.copy() for f in self.unknowns]
+
+    def state_arrays(self) -> dict[str, np.ndarray]:
+        """The live arrays that define the state (the time stepper's error control saves and
+        restores them around a trial step)."""
+        arrays = {"u": self.u.x.array, "u_n": self.u_n.x.array, "u_nm1": self.u_nm1.x.array}
+        if self.p is not None:
+            arrays["p"] = self.p.x.array
+        if self.qlv is not None:
+            arrays |= {f"qlv_{i}": f.x.array for i, f in enumerate([*self.qlv.h, self.qlv.S_e_n])}
+        return arrays
 
     def restore(self):
         for f, saved in zip(self.unknowns, self._last):
