@@ -98,10 +98,7 @@ class AdaptOptions:
     pulp zone reaches this far (mm) beyond each indenter's half-width, and as deep;
     weight_length: decay length (mm) of the indicator's weight outside the regions; floor:
     the smallest size (mm; default `default_floor`);
-    max_dofs: stop before a level would exceed this many unknowns (estimated); far_field:
-    False holds every cell farther than refine_depth from the scene's refinement zone on the
-    pulp at level 0's size (the coarse accuracy study holds its far field, and the loop is
-    checked against it like for like).
+    max_dofs: stop before a level would exceed this many unknowns (estimated).
     """
 
     tol: float = 0.01
@@ -117,7 +114,6 @@ class AdaptOptions:
     weight_length: float = 1.0
     floor: float | None = None
     max_dofs: int | None = None
-    far_field: bool = True
 
     def __post_init__(self):
         for key in ("tol", "coarsen", "order", "safety", "first_ratio", "min_ratio",
@@ -376,16 +372,7 @@ def level_data(run_dir: Path, scene, options: AdaptOptions) -> dict:
         density = d if density is None else np.maximum(density, d)
     return {"X": X, "area": area, "h": cell_sizes(X), "centroids": X.mean(axis=1),
             "pairs": cell_neighbours(ids), "density": density,
-            "zones": zones(result, scene, options), "held": refinement_zone(scene.section)}
-
-
-def refinement_zone(section) -> Zone:
-    """The section's own refinement zone (min_size within refine_depth of the pulp where
-    |x| < refine_half_width) as discs along the pulp."""
-    m, outer = section.mesh, section.outer
-    u = np.linspace(*section.refine_params, max(3, math.ceil(
-        8 * outer.arc_length(*section.refine_params) / m.refine_depth)))
-    return Zone(outer.point(u), np.full(len(u), m.refine_depth))
+            "zones": zones(result, scene, options)}
 
 
 def zones(result, scene, options: AdaptOptions) -> dict[str, Zone]:
@@ -605,9 +592,6 @@ def _plan_next(k: int, levels: list, data: list, options: AdaptOptions, floor: f
     sizes = next_sizes(d["h"], d["density"], d["area"], d["centroids"], d["pairs"], refine,
                        ratios,
                        order=options.order, weight_length=options.weight_length, floor=floor)
-    if not options.far_field:
-        far = d["held"].distance(d["centroids"]) > 0.0
-        sizes[far] = np.maximum(sizes[far], d["h"][far])
     growth = float(np.sum(d["area"] / sizes**2) / np.sum(d["area"] / d["h"] ** 2))
     planned, blocked = {}, []
     for name, zone in d["zones"].items():
