@@ -449,11 +449,18 @@ def adapt(scene, out: str | Path, options: AdaptOptions | None = None, *,
     error is <= options.tol (module docstring). Returns adapt.json's content; `out` holds the
     finest level's files as a normal run (summary.json with an `adaptivity` table).
 
-    A level whose run fails raises `ConvergenceError` after the files are written.
+    Without `options`: tol and max_levels from the scene's `[accuracy]` table (tol 0.01 if it
+    has none). A level whose run fails raises `ConvergenceError` after the files are written.
+
+        report = ft.adapt(ft.load_scene("line-load"), "results/ll", ft.AdaptOptions(tol=0.01))
+        report["estimated_errors"], report["mesh"], report["cost"]
+        ft.load_result("results/ll").depth_profile("sed_MPa", depth=0.75, t=1.0)
     """
     from .runner import run_scene
 
-    options = options or AdaptOptions()
+    if options is None:
+        options = AdaptOptions(tol=scene.accuracy.tol or 0.01,
+                               max_levels=scene.accuracy.max_levels)
     comm = comm or MPI.COMM_WORLD
     out = Path(out)
     started, cpu = time.perf_counter(), time.process_time()

@@ -82,8 +82,9 @@ def test_cheapest_setting_is_named(study):
 def test_adaptive_loop_estimates_are_checked_against_the_reference(study):
     """The adaptive loop from the coarsest mesh, tol = 5 %: its estimates bound its true
     errors, or the reference cannot tell (measured: every output bounded but the two forces,
-    estimated 0.26 %, off by 0.37 % from a reference whose far field, held at 1.2 mm, moves
-    the force by 0.29 %: the loop refines the far field, the study does not)."""
+    estimated 0.26 %, 0.37 % from a reference whose own uncertainty is 0.37 %: its far field,
+    held at 1.2 mm, moves the force by 0.29 %; the loop refines the far field, the study does
+    not)."""
     out, result = study
     adaptive = result["adaptive"]
     assert adaptive["converged"] and len(adaptive["levels"]) >= 2

@@ -362,8 +362,11 @@ def run_accuracy_study(scene_name: str, out: Path, *, levels: int = 3, coarse: b
     sentence = _sentence(best, rows, scene_name)
     adaptive = None
     if adapt_tol is not None:
-        finest = [r for r in rows if r["family"] == ref.name and r["kind"] == "mesh"
-                  and r["converged"]][-1]
+        ladder = [r for r in rows if r["family"] == ref.name and r["kind"] == "mesh"
+                  and r["converged"]]
+        finest = ladder[-1]
+        previous = ladder[-2] if len(ladder) > 1 and (
+            ladder[-1]["level"] - ladder[-2]["level"] == 1) else None
         far = None
         if not plan.scale_outer:  # the far field is held: how much does it matter?
             h, mx, bone = sizes[finest["level"]]
@@ -375,7 +378,8 @@ def run_accuracy_study(scene_name: str, out: Path, *, levels: int = 3, coarse: b
                            progress, comm)
             if not far["converged"]:
                 far = None
-        uncertainty = reference_uncertainty(finest, references["scene"], far)
+        uncertainty = reference_uncertainty(finest, previous, references["scene"], plan.ratio,
+                                            far)
         say(f"adaptive loop, tol = {adapt_tol:g}, from h = {sizes[0][0]:.4g} mm")
         adaptive = check_adaptive(scene_name, base_overrides + list(ref.settings), sizes[0],
                                   out / "adaptive", adapt_tol, references["scene"],
@@ -459,16 +463,22 @@ def check_adaptive(scene_name, settings, start, out: Path, tol: float, reference
             "sentence": sentence}
 
 
-def reference_uncertainty(finest: dict, reference: dict, far: dict | None = None) -> dict:
+def reference_uncertainty(finest: dict, previous: dict | None, reference: dict, ratio: float,
+                          far: dict | None = None, order: float = 2.0) -> dict:
     """How far the study's reference may itself be off, per key (relative): the Richardson
-    correction it applied to the finest run, |f_finest - f_ref| (Roache's conservative reading:
-    an extrapolated value is uncertain by about its correction), plus, for a plan that holds
-    the far field, how much the finest run moves when the far field is halved, |f_far -
-    f_finest| (the reference is the limit at a coarse far field; the loop refines it)."""
+    correction it applied to the finest run, |f_finest - f_ref|, plus the finest run's grid
+    convergence index at the formal order, |f_finest - f_previous| / (r^p - 1) (Roache 1998;
+    Celik et al. 2008 report it as the uncertainty of the fine solution: it is what remains
+    when three levels give an order far above the formal one, or none, and the correction is
+    then small or zero), plus, for a plan that holds the far field, how much the finest run
+    moves when the far field is halved, |f_far - f_finest| (the reference is the limit at a
+    coarse far field; the loop refines it)."""
     out = {}
     for k in KEYS:
         scale = max(abs(reference[k]), 1e-300)
         u = abs(finest[k] - reference[k]) / scale
+        if previous is not None:
+            u += abs(finest[k] - previous[k]) / (ratio**order - 1.0) / scale
         if far is not None:
             u += abs(far[k] - finest[k]) / scale
         out[k] = u
@@ -612,11 +622,11 @@ def _write(result: dict, out: Path):
                                                 "reference's uncertainty") for k in KEYS)
                      + " |")
         lines += ["", ("The reference's uncertainty: the Richardson correction it applied to "
-                       "the finest run (an extrapolated value is uncertain by about its "
-                       "correction), plus, where the study holds the far field, how much the "
-                       "finest run moves when the far field is halved (the loop refines the far "
-                       "field where its indicator asks). An error within it cannot be judged by "
-                       "this reference.")]
+                       "the finest run, plus that run's grid convergence index at the formal "
+                       "order 2, |f_finest - f_previous| / (r^2 - 1), plus, where the study holds "
+                       "the far field, how much the finest run moves when the far field is "
+                       "halved (the loop refines the far field where its indicator asks). An "
+                       "error within it cannot be judged by this reference.")]
     lines += ["", "## Notes", ""] + [f"- {n}" for n in result["notes"]]
     for fam, est in list(result["richardson_by_family"].items()) + [
             ("Δt", result["time_richardson"])]:
