@@ -8,45 +8,52 @@ The loop (`adapt`), level k = 0, 1, ...:
    loop places the fine cells itself); level k > 0 adds a size map (`mesh.SizeMap`, the file
    `section.mesh.size_map`) that can only refine the level-0 fields.
 2. **Estimate** the error of every key output from the levels so far (`estimate`): Roache's
-   grid convergence index E = Fs |f_k - f_(k-1)| / (r^p - 1) / |f_k|. With three levels, p is
-   the order observed from the three values and the two ratios (capped at the assumed order
-   2), Fs = 1.25. With two levels, p = 2 and Fs = 1.25 as well: Roache's Fs = 3 is for an
-   order nobody has observed, but the accuracy study observed 2.0-2.2 on every key output of
-   these scenes (3.1 for the line load's SED), and the study's check of this loop
-   (`studies.accuracy`, the estimates against its Richardson values) is what keeps that honest.
-   A three-level sequence that oscillates, or whose observed order is below 0.5, falls back
-   to p = 2 and Fs = 3. References: P. J.
-   Roache, *Verification and Validation in Computational Science and Engineering* (Hermosa,
-   1998), ch. 5; I. B. Celik et al., "Procedure for estimation and reporting of uncertainty
-   due to discretization in CFD applications", J. Fluids Eng. 130 (2008) 078001 (the same
-   estimate with unequal ratios, the representative size of a region). The ratio r of an
-   output is measured, not requested: the area-weighted geometric mean of h_{k-1}/h_k over the
-   output's region (the pulp under the indenters for forces and deflections, discs around the
-   depth-curve peak for e_max and SED), from the two meshes themselves.
+   grid convergence index E = Fs |f_k - f_(k-1)| / (r^p - 1) / |f_k| (P. J. Roache,
+   *Verification and Validation in Computational Science and Engineering*, Hermosa 1998,
+   ch. 5; I. B. Celik et al., "Procedure for estimation and reporting of uncertainty due to
+   discretization in CFD applications", J. Fluids Eng. 130 (2008) 078001, for unequal ratios
+   and the size of a region). With three levels that refined the output's region, p is the
+   order observed from the three values and the two ratios, capped at the assumed order 2,
+   and Fs = 1.25; an oscillating sequence, or an observed order below 0.5, falls back to
+   p = 2 and Fs = 3. With two levels, p = 2 and Fs = 1.25: Roache's Fs = 3 is for an order
+   nobody observed, but the accuracy study observed 2.0-2.2 on every key output of these
+   scenes (3.1 for the line load's SED), and its check of this loop (`studies.accuracy`,
+   the estimates against its Richardson values) keeps that honest. The ratio r is measured,
+   not requested: the area-weighted geometric mean of h_(k-1)/h_k over the output's region
+   (`zones`: the pulp band out to the 3 mm deflections for forces and deflections, discs of
+   0.3 mm around the depth-curve peak for e_max and for SED) on the two meshes themselves. A
+   region left alone (its outputs already within safety * tol) keeps its estimate plus the
+   change its outputs saw.
 3. **Stop** when every estimate is <= tol (converged), or after `max_levels` runs, or when the
-   next mesh would exceed `max_dofs`, saying which outputs missed and by how much.
+   next mesh would exceed `max_dofs` or the floor stops a region's refinement, saying which
+   outputs missed and by how much.
 4. **Indicate and size** the next mesh (`next_sizes`): the Zienkiewicz–Zhu indicator
    (O. C. Zienkiewicz, J. Z. Zhu, "A simple error estimator and adaptive procedure for
    practical engineering analysis", IJNME 24 (1987) 337–357): the L2 distance on each cell
    between the discontinuous log strain (DG1, what the run writes) and its continuous recovery
    (area-weighted nodal averaging within each region: strains jump across material interfaces,
-   so averaging across them would flag the interfaces, not errors). Its density
-   e_K = eta_K / sqrt(|K|) falls as h^2 for P2 displacements (tests/test_adaptivity.py). Each
-   output region gets a refinement ratio from its outputs' estimates,
-   r = clip((E / (safety tol))^(1/p), 1.25, 2) (level 0: `first_ratio`), and every cell in it is
-   refined by at least r; anywhere else (the contact's edge, the far field), a cell whose
-   weighted density w e_K exceeds theta = median(w e_K over the regions) / r_max^p, the density
-   the regions will reach, gets h_K (theta / w e_K)^(1/p), ZZ's equidistribution (1987, Eq. 23)
-   with the local order p; w = 1 in the regions and exp(-d / weight_length) at distance d from
-   them. Sizes fall by at most 4 per level, never below `floor`; a grading pass (Dijkstra over
-   the cells: h_i <= h_j + g |x_i - x_j|, g = mesh.SIZE_GROWTH) keeps neighbours within 30 %
-   per mm, as the scene's own fields do. The map is handed to gmsh as a size callback that
-   combines with the scene's fields by min (`mesh.build_mesh(..., size=)`).
+   so averaging across them would flag the interfaces, not errors), the largest over the output
+   times. Its density e_K = eta_K / sqrt(|K|) falls as h^2 for P2 displacements; averaged P1
+   recovery of a P2 strain is not superconvergent, so it underestimates the error by a constant
+   factor (0.29 on a smooth field, tests/test_adaptivity.py): it says where, the levels say how
+   much. Each region whose outputs are not yet within safety * tol gets a ratio
+   r = clip((E / (safety tol))^(1/p), 1.25, 2) from its largest estimate (level 0:
+   `first_ratio`), and every cell in it is refined by r at least. Beyond that, ZZ's
+   equidistribution (1987, Eq. 23, with the local order p): a cell whose density exceeds a
+   target theta gets h_K (theta / e_K)^(1/p). For the pulp band (forces and deflections,
+   functionals of the whole solution) theta = e_rms / r^p over the whole section, so that no
+   density is left above what the total must reach; for a peak, theta = median(w e_K over its
+   discs) / r^p with w = 1 in the discs and exp(-d / weight_length) at distance d. Sizes fall
+   by at most 4 per level, never below `floor` (`default_floor`); a grading pass (Dijkstra
+   over the cells: h_i <= h_j + g |x_i - x_j|, g = mesh.SIZE_GROWTH) keeps neighbours within
+   30 % per mm, as the scene's own fields do. The map is handed to gmsh as a size callback
+   that combines with the scene's fields by min (`mesh.build_mesh(..., size=)`).
 
 Files: `out/level-<k>/` (a normal run each, plus `size_map.npz` for k > 0), the finest level's
 files copied to `out/`, `out/adapt.json` (per level: cells, dofs, wall time, key outputs,
-estimates, ratios; the mesh settled on; the total cost) and an `adaptivity` table in
-`out/summary.json`.
+estimates, ratios, the next level's plan; the mesh settled on; the total cost) and an
+`adaptivity` table in `out/summary.json`. Under MPI the runs use every rank; the indicator and
+the sizes are computed on rank 0 (2 ranks reproduce 1 rank's meshes and values).
 """
 
 from __future__ import annotations
@@ -92,10 +99,11 @@ class AdaptOptions:
     tol: the relative error every key output must reach (estimated); max_levels: runs at most;
     coarsen: level 0's min_size is the scene's times this (1: the scene's own mesh); order:
     the convergence order p assumed (P2: 2.0-2.2 measured by the accuracy study, the smaller
-    taken) and the cap on an observed one; safety: aim at safety * tol; first_ratio: the
-    refinement of the output regions after level 0; min_ratio/max_ratio: bounds of a level's
-    ratio there; peak_radius: the disc (mm) around each depth-curve peak; load_margin: the
-    pulp zone reaches this far (mm) beyond each indenter's half-width, and as deep;
+    taken) and the cap on an observed one; safety: aim at safety * tol, and leave a region
+    alone once its outputs are within that; first_ratio: the refinement of the output regions
+    after level 0; min_ratio/max_ratio: bounds of a level's ratio there; peak_radius: the
+    disc (mm) around each depth-curve peak; load_margin: the pulp band reaches this far (mm)
+    beyond the 3 mm deflections (or each indenter's footprint), and this deep;
     weight_length: decay length (mm) of the indicator's weight outside the regions; floor:
     the smallest size (mm; default `default_floor`);
     max_dofs: stop before a level would exceed this many unknowns (estimated).
