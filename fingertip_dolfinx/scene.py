@@ -89,9 +89,9 @@ class Scene:
     steps: StepOptions = field(default_factory=StepOptions)
     petsc_options: dict = field(default_factory=dict)
     outputs: Outputs = field(default_factory=Outputs)
-    accuracy: Accuracy = field(default_factory=Accuracy)
     name: str = "scene"
     description: str = ""
+    accuracy: Accuracy = field(default_factory=Accuracy)  # last: positional calls unchanged
 
     def __post_init__(self):
         self.indenters = list(self.indenters)
