@@ -41,6 +41,7 @@ _API = {
     "Scene": "scene", "Outputs": "scene", "load_scene": "scene",
     "run": "runner", "run_scene": "runner",
     "Result": "result", "load_result": "result",
+    "adapt": "adaptivity", "AdaptOptions": "adaptivity",
     # materials as data
     "Tissues": "tissues", "Rigid": "tissues", "load_materials": "tissues", "WU2004": "tissues",
     "Hyperfoam": "materials", "Prony": "materials", "HolmesMow": "materials",

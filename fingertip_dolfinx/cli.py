@@ -73,8 +73,15 @@ def _add_run(subparsers) -> None:
     p.add_argument("--fidelity", choices=("scene", "auto"), default="scene",
                    help="scene: the scene's own model (default); auto: the cheapest model of "
                    "the fidelity ladder whose key outputs stay within --tol of the full model")
-    p.add_argument("--tol", type=float, default=0.05,
-                   help="relative tolerance for --fidelity auto (default: %(default)s)")
+    p.add_argument("--tol", type=float, default=None,
+                   help="relative error every key output must reach: the mesh is refined "
+                   "where they need it (DIR/level-<k>/, the finest copied to DIR, "
+                   "DIR/adapt.json) until each estimated error is below it; with --fidelity "
+                   "auto it is the model's tolerance instead (default there: "
+                   f"{AUTO_FIDELITY_TOL}) and the mesh follows the scene's [accuracy] tol")
+    p.add_argument("--max-levels", type=int, default=None, metavar="N",
+                   help="with --tol: at most N runs (default: the scene's [accuracy] "
+                   "max_levels, 4)")
     p.add_argument("--fidelity-table", type=Path, metavar="CSV",
                    help="a fidelity.csv from `fingertip study fidelity` for this scene; without "
                    "it, --fidelity auto first runs the ladder on a coarse mesh in DIR/fidelity/")
@@ -127,6 +134,10 @@ def _add_study(subparsers) -> None:
                    "line-load for fidelity)")
     p.add_argument("--full", action="store_true",
                    help="full resolution (default: the coarse settings CI runs)")
+    p.add_argument("--adapt-tol", type=float, default=None, metavar="TOL",
+                   help="accuracy: also run the adaptive mesh loop with this tolerance from "
+                   "the study's coarsest mesh and check its estimated errors against the "
+                   "study's reference (DIR/adaptive/)")
     _add_scene_options(p)
     p.set_defaults(handler=_run_study)
 
@@ -144,9 +155,15 @@ def _run_study(args) -> int:
     if args.kind == "accuracy":
         from .studies.accuracy import run_accuracy_study
 
+        if args.adapt_tol is not None and not 0 < args.adapt_tol < 1:
+            raise InputError(f"--adapt-tol {args.adapt_tol}", "must be a relative error in "
+                             "(0, 1).", "give e.g. --adapt-tol 0.05.")
         result = run_accuracy_study(args.scene or "1pt", args.out, coarse=not args.full,
-                                    overrides=_scene_overrides(args), progress=not args.quiet)
+                                    overrides=_scene_overrides(args), progress=not args.quiet,
+                                    adapt_tol=args.adapt_tol)
         _rank0_print(result["sentence"])
+        if result["adaptive"]:
+            _rank0_print(result["adaptive"]["sentence"])
         _rank0_print(f"accuracy table written to {args.out}/accuracy.md")
         return 0
     from .studies.fidelity import run_fidelity_study
@@ -161,6 +178,9 @@ def _run_study(args) -> int:
     _rank0_print(f"fidelity table written to {args.out}/fidelity.md")
     return 0
 
+
+#: --fidelity auto's tolerance when --tol is not given.
+AUTO_FIDELITY_TOL = 0.05
 
 #: The coarse settings the studies use unless --full: a mesh 2x coarser than the scenes'.
 FIDELITY_COARSE = ("section.mesh.min_size=0.2", "section.mesh.max_size=1.0",
@@ -185,9 +205,17 @@ def _run_scene(args) -> int:
     from .scene import load_scene
 
     overrides = _scene_overrides(args)
+    mesh_tol = None
     if args.fidelity == "auto":
-        overrides += _auto_fidelity(args, overrides)
+        tol = AUTO_FIDELITY_TOL if args.tol is None else args.tol
+        overrides += _auto_fidelity(args, overrides, tol)
+    else:
+        mesh_tol = args.tol
     scene = load_scene(args.scene, overrides, spacing=args.spacing)
+    if mesh_tol is None:
+        mesh_tol = scene.accuracy.tol
+    if mesh_tol is not None or args.max_levels is not None:
+        return _run_adaptive(args, scene, mesh_tol)
     summary = run_scene(scene, args.out, resume=args.resume, progress=not args.quiet)
     _rank0_print(
         f"{scene.name}: {summary['time_steps']} steps, {summary['newton_iterations']} Newton "
@@ -198,12 +226,42 @@ def _run_scene(args) -> int:
     return 0
 
 
-def _auto_fidelity(args, overrides: list[str]) -> list[str]:
+def _run_adaptive(args, scene, tol) -> int:
+    """`run --tol`: the adaptive mesh loop (adaptivity.py) into DIR."""
+    import dataclasses as dc
+
+    from .adaptivity import AdaptOptions, adapt
+
+    if tol is None:
+        raise InputError("--max-levels", "is for the adaptive loop.",
+                         "give --tol too (or [accuracy] tol in the scene).")
+    if not 0 < tol < 1:
+        raise InputError(f"--tol {tol}", "must be a relative error in (0, 1).",
+                         "give e.g. --tol 0.01 for 1 %.")
+    if args.max_levels is not None and args.max_levels < 2:
+        raise InputError(f"--max-levels {args.max_levels}", "an error estimate needs two "
+                         "levels.", "give 2 or more.")
+    if args.resume:
+        raise InputError("--resume", "cannot continue the adaptive loop (--tol or the scene's "
+                         "[accuracy] tol).", "run it again into a new directory.")
+    levels = scene.accuracy.max_levels if args.max_levels is None else args.max_levels
+    options = AdaptOptions(tol=tol, max_levels=levels)
+    scene = dc.replace(scene, accuracy=dc.replace(scene.accuracy, tol=tol, max_levels=levels))
+    report = adapt(scene, args.out, options, progress=not args.quiet)
+    _rank0_print(report["message"])
+    cost = report["cost"]
+    _rank0_print(f"{cost['levels']} levels, {cost['wall_time_s']:.1f} s of time stepping "
+                 f"({cost['elapsed_s']:.1f} s in all); the finest level's results in {args.out}, "
+                 f"the loop in {args.out}/adapt.json")
+    return 0
+
+
+def _auto_fidelity(args, overrides: list[str], tol: float) -> list[str]:
     """The settings of the cheapest adequate model; says which it picked and why."""
     from .studies.fidelity import pick, read_table, run_fidelity_study, settings_of
 
-    if not args.tol > 0:
-        raise InputError("--tol", f"must be positive, got {args.tol}.")
+    if not tol > 0:
+        raise InputError("--tol", f"must be positive, got {tol}.")
     if args.fidelity_table is not None:
         if not args.fidelity_table.is_file():
             raise InputError(f"--fidelity-table {args.fidelity_table}", "no such file.",
@@ -216,9 +274,9 @@ def _auto_fidelity(args, overrides: list[str]) -> list[str]:
                                   list(FIDELITY_COARSE) + overrides, progress=not args.quiet)
         source = f"{args.out}/fidelity/fidelity.csv"
     try:
-        model, why = pick(rows, args.tol)
+        model, why = pick(rows, tol)
     except StopIteration:
-        raise InputError("--tol", f"no model of the ladder is within {args.tol:.2%} of the full "
+        raise InputError("--tol", f"no model of the ladder is within {tol:.2%} of the full "
                          "model (not even the full one with rigid bone).",
                          "raise --tol or use --fidelity scene.") from None
     _rank0_print(f"--fidelity auto picked '{model}': {why} (from {source})")

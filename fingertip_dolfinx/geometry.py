@@ -140,6 +140,9 @@ class MeshOptions:
     tips: tuple[float, ...] = ()
     tip_size: float = 0.02  # mm, below the tip radius (the paper's wedge: 25 µm)
     tip_zone: float = 0.25  # mm, radius of the disc meshed at tip_size around each tip point
+    #: An .npz file of a size map (`mesh.SizeMap`: points and target sizes, written by the
+    #: adaptive loop, `adaptivity.py`): the size there, where finer than the fields above. "": none.
+    size_map: str = ""
 
     def __post_init__(self):
         for key in ("min_size", "max_size", "bone_size", "refine_half_width", "refine_depth",
@@ -169,6 +172,12 @@ class MeshOptions:
                 "bone is nearly rigid and is meshed coarser than the soft tissue.",
                 "make bone_size >= max_size.",
             )
+        if not isinstance(self.size_map, str):
+            raise InputError("mesh.size_map", f"must be a file name, got {self.size_map!r}.",
+                             'write a path in quotes, or "" for none.')
+        if self.size_map and not Path(self.size_map).is_file():
+            raise InputError("mesh.size_map", f"{self.size_map}: no such file.",
+                             "give the size_map.npz of an adaptive run (DIR/level-<k>/), or \"\".")
         if not isinstance(self.quadrilateral, bool):
             raise InputError(
                 "mesh.quadrilateral",

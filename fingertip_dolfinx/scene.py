@@ -23,12 +23,12 @@ from .loading import KINDS, LoadHistory, history_from_dict
 from .model import ModelOptions
 from .solver import StepOptions
 from .tissues import DEFAULT_SET, WU2004, Tissues, load_materials
-from .validation import check_keys
+from .validation import check_keys, positive
 
 #: The built-in scenes (inside the package: `fingertip_dolfinx/data/scenes/`).
 SCENES_DIR = builtin_dir("scenes")
 TABLES = ("name", "description", "section", "spacing", "indenters", "materials", "protocol",
-          "model", "steps", "solver", "output")
+          "model", "steps", "solver", "output", "accuracy")
 
 
 @dataclass(frozen=True)
@@ -73,6 +73,26 @@ class Outputs:
                              "use an integer >= 1.")
 
 
+@dataclass(frozen=True)
+class Accuracy:
+    """`[accuracy]`: ask for an accuracy instead of a mesh. With `tol` (a relative error, e.g.
+    0.01), `fingertip run` refines the mesh (`adaptivity.py`) until every key output's
+    estimated error is below it, in at most `max_levels` runs; without it (the default) the
+    scene runs once on its own mesh."""
+
+    tol: float | None = None
+    max_levels: int = 4
+
+    def __post_init__(self):
+        if self.tol is not None and not positive("accuracy.tol", self.tol) < 1:
+            raise InputError("accuracy.tol", f"{self.tol} is a relative error of "
+                             f"{self.tol:.0%}.", "give a fraction, e.g. 0.01 for 1 %.")
+        if isinstance(self.max_levels, bool) or not (
+                isinstance(self.max_levels, int) and self.max_levels >= 2):
+            raise InputError("accuracy.max_levels", f"got {self.max_levels!r}: an error "
+                             "estimate needs two levels.", "give an integer >= 2.")
+
+
 @dataclass
 class Scene:
     """One experiment: everything a run needs, validated. Defaults: the paper's materials
@@ -88,6 +108,7 @@ class Scene:
     outputs: Outputs = field(default_factory=Outputs)
     name: str = "scene"
     description: str = ""
+    accuracy: Accuracy = field(default_factory=Accuracy)  # last: positional calls unchanged
 
     def __post_init__(self):
         self.indenters = list(self.indenters)
@@ -236,6 +257,7 @@ def scene_from_dict(data: dict, where: str = "scene") -> Scene:
         steps=_options(StepOptions, data.get("steps", {}), f"{where}: steps"),
         petsc_options=dict(data.get("solver", {})),
         outputs=_options(Outputs, data.get("output", {}), f"{where}: output"),
+        accuracy=_options(Accuracy, data.get("accuracy", {}), f"{where}: accuracy"),
     )
 
 
@@ -305,6 +327,7 @@ def scene_record(scene: Scene) -> dict:
         "steps": dataclasses.asdict(scene.steps),
         "solver": scene.petsc_options,
         "output": dataclasses.asdict(scene.outputs),
+        "accuracy": dataclasses.asdict(scene.accuracy),
     })
 
 

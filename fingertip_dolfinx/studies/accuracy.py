@@ -26,6 +26,12 @@ f_inf(dt) the Richardson value over the Δt levels (or, with only two, the small
 `accuracy.md` (the table, the Richardson estimates and orders, and the cheapest setting that
 reaches 1 % on every key output), `accuracy.png` (largest error against wall time, one curve per
 family, the Pareto front marked) and `accuracy.json` (the returned dict without the rows).
+
+**The adaptive loop's check** (`adapt_tol`): the adaptive mesh loop (`adaptivity.adapt`) runs
+from the study's coarsest mesh of the reference family (out/adaptive/) with that tolerance,
+and every level's key outputs are scored against the same reference. The loop's estimated
+error of each key output must bound its true error (estimate >= error against the
+Richardson value): accuracy.md tabulates both, per level, and says where the bound holds.
 """
 
 from __future__ import annotations
@@ -258,12 +264,14 @@ def _mesh_plan(scene_name, overrides, plan: Plan, levels: int):
 
 
 def run_accuracy_study(scene_name: str, out: Path, *, levels: int = 3, coarse: bool = True,
-                       overrides=(), progress: bool = False, plan: Plan | None = None) -> dict:
+                       overrides=(), progress: bool = False, plan: Plan | None = None,
+                       adapt_tol: float | None = None) -> dict:
     """Run the accuracy study of `scene_name` into `out` (see the module docstring).
 
     Returns {"rows": [...], "richardson": {key: {"estimate", "order", "note"}} (reference
     family, mesh), "richardson_by_family", "time_richardson", "reference": {key: value},
-    "cheapest_1pct": row or None, "sentence", "notes"}.
+    "cheapest_1pct": row or None, "sentence", "notes", "adaptive": the loop's check (None
+    without `adapt_tol`)}.
     """
     comm = MPI.COMM_WORLD
     out = Path(out)
@@ -352,16 +360,129 @@ def run_accuracy_study(scene_name: str, out: Path, *, levels: int = 3, coarse: b
 
     best = cheapest_within(rows, TOL)
     sentence = _sentence(best, rows, scene_name)
+    adaptive = None
+    if adapt_tol is not None:
+        ladder = [r for r in rows if r["family"] == ref.name and r["kind"] == "mesh"
+                  and r["converged"]]
+        finest = ladder[-1]
+        previous = ladder[-2] if len(ladder) > 1 and (
+            ladder[-1]["level"] - ladder[-2]["level"] == 1) else None
+        far = None
+        if not plan.scale_outer:  # the far field is held: how much does it matter?
+            h, mx, bone = sizes[finest["level"]]
+            say(f"{ref.name}, h = {h:.4g} mm, far field halved (the reference's uncertainty)")
+            settings = base_overrides + list(ref.settings) + [
+                f"section.mesh.min_size={h!r}", f"section.mesh.max_size={max(mx / 2, h)!r}",
+                f"section.mesh.bone_size={max(bone / 2, h)!r}"]
+            far = _run_one(scene_name, settings, out / f"{_slug(ref.name)}-h{h:.4g}-far-halved",
+                           progress, comm)
+            if not far["converged"]:
+                far = None
+        uncertainty = reference_uncertainty(finest, previous, references["scene"], plan.ratio,
+                                            far)
+        say(f"adaptive loop, tol = {adapt_tol:g}, from h = {sizes[0][0]:.4g} mm")
+        adaptive = check_adaptive(scene_name, base_overrides + list(ref.settings), sizes[0],
+                                  out / "adaptive", adapt_tol, references["scene"],
+                                  uncertainty, progress)
     result = {"scene": scene_name, "coarse": coarse, "ratio": plan.ratio,
               "rows": rows, "richardson": by_family[ref.name],
               "richardson_by_family": by_family, "time_richardson": time_est,
               "reference": references["scene"], "references": references,
-              "cheapest_1pct": best, "sentence": sentence, "notes": notes}
+              "cheapest_1pct": best, "sentence": sentence, "notes": notes,
+              "adaptive": adaptive}
     if comm.rank == 0:
         out.mkdir(parents=True, exist_ok=True)
         _write(result, out)
     comm.barrier()
     return result
+
+
+def check_adaptive(scene_name, settings, start, out: Path, tol: float, reference: dict,
+                   uncertainty: dict, progress: bool = False) -> dict:
+    """Run the adaptive loop (as `fingertip run --tol` does) from the mesh sizes `start` =
+    (min, max, bone), score every level against `reference` and check the loop's final
+    estimates against its true errors.
+
+    `uncertainty[key]`: how far the reference itself may be off (relative), see
+    `reference_uncertainty`. Per key the verdict is "yes" (estimate >= true error), "within
+    the reference's uncertainty" (true error <= estimate + uncertainty: the reference cannot
+    tell) or "no".
+
+    Returns {"tol", "converged", "message", "levels": [{level, cells, dofs, wall_time_s,
+    error_<key>, estimate_<key>}], "estimated", "true", "uncertainty", "verdict",
+    "bound": {key: bool}, "all_bound", "sentence", "failure"}.
+    """
+    from ..adaptivity import AdaptOptions, adapt
+    from ..scene import load_scene
+
+    h, mx, bone = start
+    scene = load_scene(scene_name, list(settings) + [
+        f"section.mesh.min_size={h!r}", f"section.mesh.max_size={mx!r}",
+        f"section.mesh.bone_size={bone!r}"])
+    try:
+        report = adapt(scene, out, AdaptOptions(tol=tol, coarsen=1.0), progress=progress)
+        failure = None
+    except ConvergenceError as error:
+        failure = str(error)
+        report = json.loads((Path(out) / "adapt.json").read_text()) if (
+            Path(out) / "adapt.json").is_file() else None
+    if report is None or not report["levels"]:
+        return {"tol": tol, "failure": failure, "levels": [], "all_bound": False,
+                "sentence": f"The adaptive loop failed: {failure}"}
+
+    def error(value, key):
+        return abs(value - reference[key]) / max(abs(reference[key]), 1e-300)
+
+    levels = []
+    for lv in report["levels"]:
+        row = {k: lv[k] for k in ("level", "cells", "dofs", "wall_time_s")}
+        row.update({f"error_{k}": error(lv["values"][k], k) for k in KEYS})
+        row.update({f"estimate_{k}": lv["estimates"][k]["error"] if "estimates" in lv
+                    else math.nan for k in KEYS})
+        levels.append(row)
+    final = levels[-1]
+    estimated = {k: final[f"estimate_{k}"] for k in KEYS}
+    true = {k: final[f"error_{k}"] for k in KEYS}
+    verdict = {k: "yes" if estimated[k] >= true[k] else
+               "within the reference's uncertainty" if true[k] <= estimated[k] + uncertainty[k]
+               else "no" for k in KEYS}
+    bound = {k: verdict[k] == "yes" for k in KEYS}
+    unsure = [k for k in KEYS if verdict[k] != "yes"]
+    status = "converged" if report["converged"] else "stopped"
+    sentence = (f"The adaptive loop (tol = {tol:g}) {status} after {len(levels)} levels "
+                f"({final['dofs']} unknowns, {sum(r['wall_time_s'] for r in levels):.1f} s "
+                "of time stepping in all); its estimated errors bound the true errors of "
+                + ("every key output." if not unsure else "every key output but " + ", ".join(
+                    f"{k} (estimated {estimated[k]:.3%}, true {true[k]:.3%}: "
+                    + ("the reference's own uncertainty, " + f"{uncertainty[k]:.3%}, covers it)"
+                       if verdict[k] != "no" else "NOT bounded)") for k in unsure) + "."))
+    return {"tol": tol, "converged": report["converged"], "message": report["message"],
+            "failure": failure, "levels": levels, "estimated": estimated, "true": true,
+            "uncertainty": uncertainty, "verdict": verdict, "bound": bound,
+            "all_bound": not unsure, "no_failures": "no" not in verdict.values(),
+            "sentence": sentence}
+
+
+def reference_uncertainty(finest: dict, previous: dict | None, reference: dict, ratio: float,
+                          far: dict | None = None, order: float = 2.0) -> dict:
+    """How far the study's reference may itself be off, per key (relative): the Richardson
+    correction it applied to the finest run, |f_finest - f_ref|, plus the finest run's grid
+    convergence index at the formal order, |f_finest - f_previous| / (r^p - 1) (Roache 1998;
+    Celik et al. 2008 report it as the uncertainty of the fine solution: it is what remains
+    when three levels give an order far above the formal one, or none, and the correction is
+    then small or zero), plus, for a plan that holds the far field, how much the finest run
+    moves when the far field is halved, |f_far - f_finest| (the reference is the limit at a
+    coarse far field; the loop refines it)."""
+    out = {}
+    for k in KEYS:
+        scale = max(abs(reference[k]), 1e-300)
+        u = abs(finest[k] - reference[k]) / scale
+        if previous is not None:
+            u += abs(finest[k] - previous[k]) / (ratio**order - 1.0) / scale
+        if far is not None:
+            u += abs(far[k] - finest[k]) / scale
+        out[k] = u
+    return out
 
 
 def _extrapolate(seq: list[dict], ratio: float) -> dict:
@@ -479,6 +600,33 @@ def _write(result: dict, out: Path):
                  + " |")
     lines.append("| reference | " + " | ".join(_fmt(result["reference"][k], ".6g") for k in KEYS)
                  + " |")
+    adaptive = result.get("adaptive")
+    if adaptive:
+        lines += ["", (f"## The adaptive loop (tol = {adaptive['tol']:g}): estimated against "
+                       "true errors"), "", "**" + adaptive["sentence"] + "**", "",
+                  ("Per level: the true error against the reference above / the loop's "
+                   "estimate (none at level 0). The loop starts from the coarsest mesh of the "
+                   "reference family (`adaptivity.py`)."), "",
+                  "| level | cells | dofs | wall (s) | " + " | ".join(short[k] for k in KEYS)
+                  + " |", "| ---: | ---: | ---: | ---: | " + " | ".join("---:" for _ in KEYS)
+                  + " |"]
+        for r in adaptive["levels"]:
+            lines.append(f"| {r['level']} | {r['cells']} | {r['dofs']} | {r['wall_time_s']:.1f} | "
+                         + " | ".join(f"{100 * r[f'error_{k}']:.3f} / "
+                                      f"{_fmt(100 * r[f'estimate_{k}'], '.3f')} %" for k in KEYS)
+                         + " |")
+        lines.append("| the reference's uncertainty | | | | " + " | ".join(
+            f"{100 * adaptive['uncertainty'][k]:.3f} %" for k in KEYS) + " |")
+        lines.append("| bound holds | | | | " + " | ".join(
+            {"yes": "yes", "no": "**no**"}.get(adaptive["verdict"][k], "within the "
+                                                "reference's uncertainty") for k in KEYS)
+                     + " |")
+        lines += ["", ("The reference's uncertainty: the Richardson correction it applied to "
+                       "the finest run, plus that run's grid convergence index at the formal "
+                       "order 2, |f_finest - f_previous| / (r^2 - 1), plus, where the study holds "
+                       "the far field, how much the finest run moves when the far field is "
+                       "halved (the loop refines the far field where its indicator asks). An "
+                       "error within it cannot be judged by this reference.")]
     lines += ["", "## Notes", ""] + [f"- {n}" for n in result["notes"]]
     for fam, est in list(result["richardson_by_family"].items()) + [
             ("Δt", result["time_richardson"])]:
@@ -533,6 +681,16 @@ def _chart(result: dict, path: Path):
                 where="post", color="k", lw=1.0, alpha=0.6)
         ax.scatter([r["wall_time_s"] for r in front], [max(r["max_error"], floor) for r in front],
                    s=140, facecolors="none", edgecolors="k", label="Pareto front (scene's model)")
+    adaptive = result.get("adaptive")
+    if adaptive and adaptive["levels"]:
+        seq = adaptive["levels"]
+        x = [r["wall_time_s"] for r in seq]
+        y = [max(max(r[f"error_{k}"] for k in KEYS), floor) for r in seq]
+        ax.plot(x, y, ":", marker="s", color="purple",
+                label=f"adaptive loop (tol {adaptive['tol']:g}), per level")
+        for r, xi, yi in zip(seq, x, y):
+            ax.annotate(f"L{r['level']}", (xi, yi), fontsize=7, xytext=(3, -9),
+                        textcoords="offset points")
     best = result["cheapest_1pct"]
     if best:
         ax.scatter([best["wall_time_s"]], [max(best["max_error"], floor)], marker="*", s=220,
