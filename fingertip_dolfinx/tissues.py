@@ -7,6 +7,10 @@ A materials file has a table per region, each naming its law and giving its para
     [subcutaneous.permeability]  law = "holmes-mow" (k0, kappa, M) | "constant" (k0)
     [bone], [nail]       model = "linear-elastic" (E, nu) | "rigid"
 
+and each region table may give its mass `density` (N·s²/mm⁴: 1000 kg/m³ = 1e-9), which only
+the dynamic analyses read (inertia); a quasi-static run ignores it, a dynamic one without it
+stops with an error that names the table.
+
 The built-in sets live in `fingertip_dolfinx/data/materials/` (`wu2004`: the paper's Table 1).
 A scene names its set in `[materials] set = "..."` and may override any value in the same
 tables (`[materials.subcutaneous.permeability] k0 = 1e-2`, or on the command line
@@ -31,7 +35,7 @@ from .materials import (
     LinearElastic,
     Prony,
 )
-from .validation import check_keys
+from .validation import check_keys, positive
 
 REGIONS = ("skin", "subcutaneous", "bone", "nail")
 DEFAULT_SET = "wu2004"
@@ -54,6 +58,20 @@ class Tissues:
     bone: LinearElastic | Rigid
     nail: LinearElastic | Rigid
     name: str = "custom"
+    #: Mass density of each region that has one (N·s²/mm⁴), by region name.
+    density: Mapping[str, float] = dataclasses.field(default_factory=dict, hash=False)
+
+    def densities(self, where: str = "materials") -> dict[str, float]:
+        """The density of every region (N·s²/mm⁴): an error naming the table that lacks one.
+        A rigid region needs none (its nodes are clamped)."""
+        missing = [r for r in REGIONS if r not in self.density
+                   and not isinstance(getattr(self, r), Rigid)]
+        if missing:
+            raise InputError(f"{where}: {', '.join(missing)}.density",
+                             "a dynamic analysis needs the mass density of every deformable "
+                             "region.", "add density = 1.0e-9 (N·s²/mm⁴, i.e. 1000 kg/m³) or "
+                             "the tissue's own value to each table.")
+        return {r: self.density.get(r, 0.0) for r in REGIONS}
 
     def rigid_regions(self) -> tuple[str, ...]:
         return tuple(r for r in ("bone", "nail") if isinstance(getattr(self, r), Rigid))
@@ -64,7 +82,7 @@ class Tissues:
         skin = {"model": "hyperfoam", **_hyperfoam_record(self.skin)}
         if self.skin_prony is not None:
             skin["prony"] = {"g": list(self.skin_prony.g), "tau": list(self.skin_prony.tau)}
-        return {
+        record = {
             "name": self.name,
             "skin": skin,
             "subcutaneous": {"model": "biphasic", **_hyperfoam_record(sub.solid),
@@ -72,6 +90,9 @@ class Tissues:
             "bone": _solid_record(self.bone),
             "nail": _solid_record(self.nail),
         }
+        for region, rho in self.density.items():
+            record[region]["density"] = rho
+        return record
 
 
 # --- reading ----------------------------------------------------------------------------------
@@ -89,6 +110,7 @@ def load_materials(source: str | Path = DEFAULT_SET, overrides: Mapping | None =
 def tissues_from_dict(data: Mapping, where: str = "materials") -> Tissues:
     """Build and validate the four regions' materials from a materials file's tables."""
     check_keys(where, data, ("name", "description", *REGIONS), required=REGIONS, what="table")
+    data, density = _densities(data, where)
     return Tissues(
         skin=_skin(data["skin"], f"{where}: skin"),
         skin_prony=_prony(data["skin"].get("prony"), f"{where}: skin.prony"),
@@ -96,7 +118,20 @@ def tissues_from_dict(data: Mapping, where: str = "materials") -> Tissues:
         bone=_solid(data["bone"], f"{where}: bone"),
         nail=_solid(data["nail"], f"{where}: nail"),
         name=str(data.get("name", "custom")),
+        density=density,
     )
+
+
+def _densities(data: Mapping, where: str) -> tuple[dict, dict[str, float]]:
+    """The region tables without their `density` keys, and the densities (validated)."""
+    tables, density = dict(data), {}
+    for region in REGIONS:
+        table = tables[region]
+        if isinstance(table, Mapping) and "density" in table:
+            density[region] = positive(f"{where}: {region}.density", table["density"],
+                                       "N·s²/mm⁴")
+            tables[region] = {k: v for k, v in table.items() if k != "density"}
+    return tables, density
 
 
 def merge(base: Mapping, overrides: Mapping) -> dict:

@@ -30,7 +30,8 @@ from fingertip_dolfinx.model import (
 from fingertip_dolfinx.problem import FingertipProblem
 from fingertip_dolfinx.scene import load_scene
 from fingertip_dolfinx.solver import DEFAULT_PETSC_OPTIONS, TimeStepper
-from fingertip_dolfinx.tissues import REGIONS, WU2004, load_materials
+from fingertip_dolfinx.errors import InputError
+from fingertip_dolfinx.tissues import REGIONS, WU2004, load_materials, tissues_from_dict
 
 COARSE = ["section.mesh.min_size=0.2", "section.mesh.max_size=1.0", "section.mesh.bone_size=2.0"]
 #: A homogeneous stretch (diagonal: principal stretches λ1, λ2, λ3 = 1) and a sheared state.
@@ -242,3 +243,20 @@ def test_rigid_bone_and_nail_from_the_file_is_the_rigid_bone_option(scene, fmesh
     from_option = _run(_problem(scene, fmesh, rigid_bone=True), scene)
     forces = [[r.diagnostics["force_N_per_mm"] for r in run] for run in (from_file, from_option)]
     np.testing.assert_allclose(forces[0], forces[1], rtol=1e-14)
+
+
+# --- densities (read by the dynamic analyses only) ---------------------------------------------
+
+
+def test_densities_are_read_recorded_and_required_by_region():
+    rho = WU2004.densities()
+    assert rho == {"skin": 1.09e-9, "subcutaneous": 1.0e-9, "bone": 1.92e-9, "nail": 1.3e-9}
+    assert load_materials("wu2004", WU2004.record()).densities() == rho  # the record reads back
+    rigid = load_materials("wu2004", {"bone": {"model": "rigid"}})
+    assert rigid.densities()["bone"] == 0.0  # a clamped region needs no density
+    data = WU2004.record()
+    del data["skin"]["density"]
+    with pytest.raises(InputError, match=r"skin\.density.*add density = 1\.0e-9"):
+        tissues_from_dict(data).densities()
+    with pytest.raises(InputError, match=r"nail\.density: must be positive"):
+        load_materials("wu2004", {"nail": {"density": 0.0}})
