@@ -52,6 +52,7 @@ _API = {
     "Wedge": "indenters", "Bar": "indenters", "Cylinder": "indenters", "Plate": "indenters",
     "load_indenter": "indenters",
     "RampHold": "loading", "PiecewiseLinear": "loading", "Sinusoid": "loading",
+    "Vibration": "loading",
     # the model, the problem and the solver, for those who build their own runs
     "ModelOptions": "model", "FingertipProblem": "problem",
     "StepOptions": "solver", "TimeStepper": "solver",

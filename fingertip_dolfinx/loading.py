@@ -146,11 +146,95 @@ class Sinusoid:
         return tuple(sorted({0.0, *(m for m in marks if m <= self.end_time), self.end_time}))
 
 
+@dataclass(frozen=True)
+class Vibration:
+    """A vibrotactile stimulus: press, hold, then vibrate about the pressed depth.
+
+        d(t) = depth · t/ramp_time                               0 <= t <= ramp_time
+             = depth                                              ramp_time <= t <= t_on
+             = depth + Σ_k A_k sin(2π f_k (t − t_on))             t_on <= t <= end_time
+
+    with t_on = ramp_time + hold_time (the `pressing` part is a `RampHold` ending at t_on) and
+    `cycles` periods of the slowest frequency after it. `amplitudes` (mm) and `frequencies` (Hz)
+    pair up (a sum of sinusoids; one of each is a pure tone). The vibration starts at the pressed
+    depth with the velocity Σ 2π f_k A_k: t_on is a kink of the load (a breakpoint).
+    """
+
+    depth: float
+    ramp_time: float
+    hold_time: float
+    amplitudes: tuple[float, ...]
+    frequencies: tuple[float, ...]
+    cycles: float = 10.0
+
+    def __post_init__(self):
+        for name in ("amplitudes", "frequencies"):
+            value = getattr(self, name)
+            value = (value,) if isinstance(value, int | float) else value
+            object.__setattr__(self, name, tuple(float(x) for x in value))
+        if not (self.depth > 0 and self.ramp_time > 0 and self.hold_time >= 0):
+            raise InputError("protocol", f"need depth > 0, ramp_time > 0, hold_time >= 0, got "
+                             f"{self.depth}, {self.ramp_time}, {self.hold_time}.",
+                             "press into the skin before vibrating.")
+        if not self.frequencies or len(self.frequencies) != len(self.amplitudes):
+            raise InputError("protocol.amplitudes/frequencies", f"{len(self.amplitudes)} "
+                             f"amplitudes for {len(self.frequencies)} frequencies.",
+                             "give one amplitude (mm) per frequency (Hz).")
+        if min(self.frequencies) <= 0 or not self.cycles > 0:
+            raise InputError("protocol.frequencies/cycles", f"frequencies {self.frequencies} "
+                             f"and cycles {self.cycles} must be positive.", "use values > 0.")
+        if sum(abs(a) for a in self.amplitudes) >= self.depth:
+            raise InputError("protocol.amplitudes", f"Σ|A_k| = "
+                             f"{sum(abs(a) for a in self.amplitudes):g} mm reaches the pressed "
+                             f"depth {self.depth:g} mm: the probe would leave the skin.",
+                             "use smaller amplitudes or press deeper.")
+
+    @property
+    def onset(self) -> float:
+        """t_on: when the vibration starts (s)."""
+        return self.ramp_time + self.hold_time
+
+    @property
+    def end_time(self) -> float:
+        return self.onset + self.cycles / min(self.frequencies)
+
+    @property
+    def pressing(self) -> RampHold:
+        """The pre-indentation alone: ramp to `depth`, hold until the vibration's onset."""
+        return RampHold(self.depth, self.ramp_time, self.onset)
+
+    @property
+    def period(self) -> float:
+        """The shortest period (s): dynamic steps must resolve it."""
+        return 1.0 / max(self.frequencies)
+
+    def __call__(self, t: float) -> float:
+        if t <= self.onset:
+            return self.pressing(t)
+        s = t - self.onset
+        return self.depth + sum(a * math.sin(2 * math.pi * f * s)
+                                for a, f in zip(self.amplitudes, self.frequencies))
+
+    @property
+    def breakpoints(self) -> tuple[float, ...]:
+        marks = {0.0, self.ramp_time, self.onset, self.end_time}
+        if len(self.frequencies) == 1:  # a pure tone: its peaks and zero crossings
+            quarter = 0.25 / self.frequencies[0]
+            n = int(round((self.end_time - self.onset) / quarter))
+            marks |= {self.onset + quarter * i for i in range(n + 1)}
+        return tuple(sorted(m for m in marks if m <= self.end_time))
+
+    @property
+    def deepest(self) -> float:
+        return self.depth + sum(abs(a) for a in self.amplitudes)
+
+
 #: Any of the built-in protocol kinds (each meets `LoadHistory`).
-History = PiecewiseLinear | RampHold | Sinusoid
+History = PiecewiseLinear | RampHold | Sinusoid | Vibration
 
 
-KINDS = {"ramp-hold": RampHold, "piecewise-linear": PiecewiseLinear, "sinusoid": Sinusoid}
+KINDS = {"ramp-hold": RampHold, "piecewise-linear": PiecewiseLinear, "sinusoid": Sinusoid,
+         "vibration": Vibration}
 
 
 def history_from_dict(data: dict, where: str = "protocol") -> LoadHistory:
