@@ -1,0 +1,419 @@
+r"""Afferent responses to vibration: firing vs amplitude, threshold curves, and the SED rate,
+for any mechanics that gives the stimulus's transfer function at the receptor sites.
+
+**Input.** Frequencies f_j (Hz), a receptor class (`receptors.load_receptors()[name]`), and per
+site i the complex transfer function H_ji (the class's stimulus quantity, compression positive,
+per mm of probe displacement: |H| its amplitude, arg H its phase) and the pressed value s0_i
+of that quantity (the static state about which the probe vibrates). How H was computed
+(frequency-domain mechanics, a time-domain run, a closed form) is no concern of this module.
+
+**Stimulus at a site** for a probe displacement A sin(2π f t) (small signal, linear in A):
+
+    s(t) = s0 + a sin θ,   ṡ = a ω cos θ,   s̈ = −a ω² sin θ,   a = A |H|,  θ = ωt + arg H,
+
+with the exact derivatives (not differences). In steady state the phase arg H only shifts the
+spike train in time: thresholds and rates depend on a, f and s0 only, so a probe threshold is
+the stimulus threshold divided by |H| (exactly 1/|H| scaling).
+
+**Neuron.** The class's LIF of `receptors` (current J = p7 I/(p7 + |I|) of the rectified input
+I = p1[s]+ + p2[s]− + p3[ṡ]+ + p4[ṡ]− + p5[s̈]+ + p6[s̈]−; τ dv/dt = −v + J, spike at v = 1,
+v = 0 held for t_ref). J is sampled at N points per cycle (phase 0 a sample, so with N
+divisible by 4 the kinks of [ṡ]± and [s̈]± lie on samples) and is linear in between; on each
+piece the membrane is integrated in closed form and every threshold crossing is found as the
+root of that closed form (the same scheme as `receptors.lif_spikes`, vectorised over lanes =
+(frequency, site, amplitude) here). The only approximation is the linear interpolation of J:
+|δJ| <= h² max|J''| / 8 with h = T/N, i.e. a relative error <= (2π/N)²/8 = 3e-4 at N = 128
+on the smooth parts of a rectified sinusoid.
+
+**Criteria** (the names of Freeman & Johnson 1982, J Physiol 323:43-64, abstract read: "Amplitudes,
+I, less than I(0) produced no impulse on any stimulus cycles. Amplitudes greater than I(1)
+produced one impulse on every cycle. As I rose from I(0) to I(1) the impulse rate rose
+monotonically from 0 to 1 impulse/cycle"):
+
+- *absolute threshold* I0: the smallest amplitude at which the neuron fires in steady state,
+  beyond the response to s0 alone. If s0 alone does not fire, this is exact without
+  simulating spikes: the steady state without spikes is the periodic solution v_p of the
+  linear ODE (v_p(0) = w / (1 − e^{−T/τ}), w the response over one cycle from 0); there are
+  spikes in steady state iff max v_p > 1 (maximum over the samples and over each piece's
+  interior, in closed form). If s0 alone fires (a pressed SA1 site), the criterion is at least
+  one spike more than s0 alone over the `cycles` counted cycles (this package's reading of
+  "beyond the static response").
+- *entrainment threshold* I1 (1:1, "tuning"): the smallest amplitude at which every one of the
+  `cycles` counted cycles (after `settle` cycles; the run starts from v_p(0), the steady state
+  of the sub-threshold membrane) holds at least one spike. Impossible (inf) where the period is
+  below the refractory period or f exceeds the rate of the saturated current.
+
+Both bisect in amplitude (geometrically, to `rtol`) and assume the response grows with the
+amplitude (true for RA and PC inputs, which scale with a; for a static SA1 weight the negative
+half-cycle lowers J, and monotonicity is an assumption). The *cycle response* (impulses per
+cycle, Johansson, Landström & Lundström 1982, Brain Res 244:17, abstract: "the number of
+impulses evoked per sine wave cycle") is the mean spike count per counted cycle; the rate is
+that times f.
+
+**SED-rate model** (`receptors`: r = k SED, classes with a gain reading SED): under vibration
+r(t) = k [s0 + a sin θ]+, whose cycle mean is k s0 for a <= s0 (no response to vibration on
+average: this model has no rate sensitivity) and k [s0 (1/2 + β/π) + a cos β / π],
+β = arcsin(s0/a), above.
+
+Measured (benchmark command in the report): 40 frequencies × 20 sites × 3 classes of the
+default set, both thresholds: see `benchmarks/vibrotactile_thresholds.py`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InputError
+from .receptors import LIF, ReceptorClass, constant_current_rate, rectified_input, saturate
+
+SAMPLES = 64  # samples of J per cycle (divisible by 4): J interpolation error <= 1.2e-3 relative
+SETTLE = 3  # cycles discarded at least (more for slow membranes, see _settle)
+CYCLES = 10  # cycles counted
+MAX_SETTLE = 20
+NEWTON = 12  # iterations for a crossing time (monotone, quadratic: round-off in ~6)
+
+
+# --- the stimulus and the current over one cycle ---------------------------------------------
+
+
+def site_stimulus(theta, a, omega, s0):
+    """(s, ṡ, s̈) at phase θ for s = s0 + a sin θ (exact derivatives, θ = ωt + φ)."""
+    return s0 + a * np.sin(theta), a * omega * np.cos(theta), -a * omega**2 * np.sin(theta)
+
+
+def cycle_current(lif: LIF, frequency, a, s0, samples: int = SAMPLES) -> np.ndarray:
+    """J at N + 1 equally spaced phases of one cycle (phase 0 to 2π) per lane: (L, N + 1)."""
+    f, a, s0 = (np.asarray(x, dtype=float).reshape(-1, 1) for x in np.broadcast_arrays(
+        frequency, a, s0))
+    theta = np.linspace(0.0, 2 * np.pi, samples + 1)[None, :]
+    s, ds, dds = site_stimulus(theta, a, 2 * np.pi * f, s0)
+    return saturate(rectified_input(s, ds, dds, lif.weights), lif.saturation)
+
+
+# --- the membrane: periodic sub-threshold solution and spiking lanes ------------------------
+
+
+def _piece_end(v, j, m, tau, h):
+    """v after h on a piece with J = j + m s from v: the closed form."""
+    return j + m * (h - tau) + (v - j + m * tau) * np.exp(-h / tau)
+
+
+def periodic_membrane(j: np.ndarray, period, tau: float) -> tuple[np.ndarray, np.ndarray]:
+    """The periodic solution of τ v' = −v + J (no spikes) for J sampled over one cycle
+    (L, N + 1): its samples (L, N + 1) and its maximum over the cycle (L,), piece interiors
+    included (a concave piece, c = v − J + mτ < 0, m < 0, peaks at s* = −τ ln(mτ/c))."""
+    n = j.shape[1] - 1
+    h = np.asarray(period, dtype=float).reshape(-1) / n
+    m = np.diff(j, axis=1) / h[:, None]
+    w = np.zeros(len(j))
+    for k in range(n):  # response over one cycle from v = 0
+        w = _piece_end(w, j[:, k], m[:, k], tau, h)
+    v = np.empty_like(j)
+    v[:, 0] = w / -np.expm1(-n * h / tau)
+    for k in range(n):
+        v[:, k + 1] = _piece_end(v[:, k], j[:, k], m[:, k], tau, h)
+    c = v[:, :-1] - j[:, :-1] + m * tau
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s_star = -tau * np.log(m * tau / c)
+    inside = (c < 0) & (m < 0) & (s_star > 0) & (s_star < h[:, None])
+    peak = np.where(inside, j[:, :-1] + m * np.where(inside, s_star, 0.0), -np.inf)
+    return v, np.maximum(v.max(axis=1), peak.max(axis=1))
+
+
+def _first_crossing(v, j, m, tau, h):
+    """First s in (0, h] with v(s) = 1 per lane (NaN where none): f(s) = v(s) − 1 is convex or
+    concave, so its maximum over [0, h] lies at 0, h or s*, and it has one root before it."""
+    c = v - j + m * tau
+
+    def f(s, i=slice(None)):
+        return j[i] - m[i] * tau - 1.0 + m[i] * s + c[i] * np.exp(-s / tau)
+
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s_star = -tau * np.log(m * tau / c)
+    s_star = np.where(np.isfinite(s_star), np.clip(s_star, 0.0, h), h)
+    high = np.where(f(s_star) > f(h), s_star, h)
+    cross = np.flatnonzero(f(high) >= 0)
+    out = np.full(len(v), np.nan)
+    if len(cross):
+        # Newton converges monotonically: from 0 on a concave piece (the tangent lies above f,
+        # so every iterate stays left of the root), from `high` on a convex one (below f).
+        cc, mm, top = c[cross], m[cross], high[cross]
+        x = np.where(cc < 0, 0.0, top)
+        for _ in range(NEWTON):
+            slope = mm - cc / tau * np.exp(-x / tau)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                step = f(x, cross) / slope
+            x = np.clip(x - np.where(slope > 0, step, 0.0), 0.0, top)
+        out[cross] = x
+    return out
+
+
+def spike_counts(j: np.ndarray, period, tau: float, refractory: float, cycles: int,
+                 v0=None) -> np.ndarray:
+    """Spikes in each of `cycles` cycles (L, cycles) of the periodic current J (L, N + 1) from
+    the membrane v0 at t = 0 (default 0): the exact piecewise integration, lane by lane."""
+    n_lanes, n = j.shape[0], j.shape[1] - 1
+    h = np.asarray(period, dtype=float).reshape(-1) / n * np.ones(n_lanes)
+    m = np.diff(j, axis=1) / h[:, None]
+    v = np.zeros(n_lanes) if v0 is None else np.array(v0, dtype=float)
+    counts = np.zeros((n_lanes, cycles), dtype=int)
+    rest = np.zeros(n_lanes)  # refractory time left at the start of the piece
+    lanes = np.arange(n_lanes)
+    for step in range(n * cycles):
+        k, cycle = step % n, step // n
+        pos = np.zeros(n_lanes)  # time into the piece
+        todo = lanes
+        while len(todo):
+            held = rest[todo] >= h[todo] - pos[todo]
+            done = todo[held]
+            rest[done] -= h[done] - pos[done]
+            v[done] = 0.0
+            todo = todo[~held]
+            if not len(todo):
+                break
+            start = pos[todo] + rest[todo]
+            v[todo] = np.where(rest[todo] > 0, 0.0, v[todo])
+            rest[todo] = 0.0
+            jn = j[todo, k] + m[todo, k] * start
+            left = h[todo] - start
+            s = _first_crossing(v[todo], jn, m[todo, k], tau, left)
+            quiet = np.isnan(s)
+            q = todo[quiet]
+            v[q] = _piece_end(v[q], jn[quiet], m[q, k], tau, left[quiet])
+            fire = todo[~quiet]
+            counts[fire, cycle] += 1
+            v[fire] = 0.0
+            pos[fire] = start[~quiet] + s[~quiet]
+            rest[fire] = refractory
+            todo = fire
+    return counts
+
+
+def _settle(tau: float, frequency) -> int:
+    """Cycles discarded: at least SETTLE, three membrane time constants, at most MAX_SETTLE."""
+    return int(min(MAX_SETTLE, max(SETTLE, math.ceil(3 * tau * float(np.max(frequency))))))
+
+
+def cycle_response(lif: LIF, frequency, a, s0, *, cycles: int = CYCLES,
+                   samples: int = SAMPLES) -> np.ndarray:
+    """Steady-state spikes in each counted cycle (L, cycles) for lanes (f, a, s0) broadcast
+    together, all in one batch (each lane its own period); `_settle` cycles of the highest
+    frequency are discarded first. The run starts from the sub-threshold periodic state
+    v_p(0) (0 where v_p reaches the threshold)."""
+    f, a, s0 = (np.asarray(x, dtype=float).ravel() for x in np.broadcast_arrays(
+        frequency, a, s0))
+    if not len(f):
+        return np.zeros((0, cycles), dtype=int)
+    j = cycle_current(lif, f, a, s0, samples)
+    vp, peak = periodic_membrane(j, 1 / f, lif.tau)
+    v0 = np.where(peak < 1.0, vp[:, 0], 0.0)
+    settle = _settle(lif.tau, f)
+    counts = spike_counts(j, 1 / f, lif.tau, lif.refractory, settle + cycles, v0)
+    return counts[:, settle:]
+
+
+# --- thresholds ------------------------------------------------------------------------------
+
+
+def _bisect(predicate, low, high, rtol: float) -> np.ndarray:
+    """Smallest amplitude in (low, high] where predicate holds, per lane, to rtol
+    (geometric bisection; predicate(high) must hold and be monotone in the amplitude)."""
+    low, high = np.array(low, dtype=float), np.array(high, dtype=float)
+    todo = np.isfinite(high) & (high > 0)
+    while np.any(todo & (high > low * (1 + rtol))):
+        lanes = todo & (high > low * (1 + rtol))
+        mid = np.where(low > 0, np.sqrt(low * high), 0.5 * high)
+        ok = predicate(mid[lanes], lanes)
+        high[np.flatnonzero(lanes)[ok]] = mid[lanes][ok]
+        low[np.flatnonzero(lanes)[~ok]] = mid[lanes][~ok]
+    return high
+
+
+def _bracket(predicate, guess, lanes, limit: float = 1e12,
+             low=None) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) with predicate(high) true, by quadrupling from guess (inf: not within
+    guess × limit); `low`: a known lower bound (default 0)."""
+    low = np.zeros_like(guess) if low is None else np.array(low, dtype=float)
+    high = guess.copy()
+    todo = lanes.copy()
+    while np.any(todo):
+        ok = np.zeros(len(guess), dtype=bool)
+        ok[todo] = predicate(high[todo], todo)
+        todo &= ~ok
+        low[todo] = high[todo]
+        high[todo] *= 4.0
+        over = todo & (high > guess * limit)
+        high[over], todo[over] = np.inf, False
+    return low, high
+
+
+def _guess(lif: LIF, frequency: np.ndarray) -> np.ndarray:
+    """The amplitude at which the unsaturated input reaches 1 at its peak."""
+    p = np.abs(np.asarray(lif.weights))
+    w = 2 * np.pi * frequency
+    gain = np.maximum(p[0], p[1]) + np.maximum(p[2], p[3]) * w + np.maximum(p[4], p[5]) * w**2
+    return 1.0 / np.maximum(gain, 1e-300)
+
+
+def absolute_threshold_stimulus(lif: LIF, frequency, s0=0.0, *, cycles: int = CYCLES,
+                                samples: int = SAMPLES, rtol: float = 1e-2) -> np.ndarray:
+    """I0 in the stimulus's units at the site, per lane (f, s0) (see the module docstring)."""
+    f, s0 = (np.asarray(x, dtype=float).ravel() for x in np.broadcast_arrays(frequency, s0))
+    static_j = saturate(rectified_input(s0, 0.0, 0.0, lif.weights), lif.saturation)
+    static = static_j > 1.0
+    static_count = np.zeros(len(f), dtype=int)
+    if np.any(static):
+        static_count[static] = cycle_response(lif, f[static], 0.0, s0[static], cycles=cycles,
+                                              samples=samples).sum(axis=1)
+
+    def fires(a, lanes):
+        out = np.zeros(len(a), dtype=bool)
+        quiet = ~static[lanes]
+        fl, sl = f[lanes], s0[lanes]
+        if np.any(quiet):
+            j = cycle_current(lif, fl[quiet], a[quiet], sl[quiet], samples)
+            out[quiet] = periodic_membrane(j, 1 / fl[quiet], lif.tau)[1] > 1
+        if np.any(~quiet):
+            counts = cycle_response(lif, fl[~quiet], a[~quiet], sl[~quiet], cycles=cycles,
+                                    samples=samples).sum(axis=1)
+            out[~quiet] = counts > static_count[lanes][~quiet]
+        return out
+
+    low, high = _bracket(fires, _guess(lif, f), np.ones(len(f), dtype=bool))
+    return _bisect(fires, low, high, rtol)
+
+
+def entrainment_threshold_stimulus(lif: LIF, frequency, s0=0.0, *, cycles: int = CYCLES,
+                                   samples: int = SAMPLES, rtol: float = 1e-2,
+                                   absolute=None) -> np.ndarray:
+    """I1 (one spike on every counted cycle) in the stimulus's units, per lane (f, s0)."""
+    f, s0 = (np.asarray(x, dtype=float).ravel() for x in np.broadcast_arrays(frequency, s0))
+    if absolute is None:
+        absolute = absolute_threshold_stimulus(lif, f, s0, cycles=cycles, samples=samples,
+                                               rtol=rtol)
+    ceiling = (lif.rate(lif.saturation * (1 - 1e-12)) if lif.saturation > 0 else np.inf)
+    possible = (1 / f > lif.refractory) & (f < ceiling) & np.isfinite(absolute)
+
+    def entrained(a, lanes):
+        counts = cycle_response(lif, f[lanes], a, s0[lanes], cycles=cycles, samples=samples)
+        return np.all(counts >= 1, axis=1)
+
+    # a lane whose static input alone fires may be entrained at A = 0
+    at_zero = np.zeros(len(f), dtype=bool)
+    zero = possible & (saturate(rectified_input(s0, 0.0, 0.0, lif.weights),
+                                lif.saturation) > 1.0)
+    if np.any(zero):
+        at_zero[zero] = entrained(np.zeros(zero.sum()), zero)
+    todo = possible & ~at_zero
+    start = np.where(todo, np.maximum(absolute, 1e-300), np.inf)
+    low, high = _bracket(entrained, start, todo, low=start * (1 - 2 * rtol))
+    out = _bisect(entrained, low, high, rtol)
+    return np.where(at_zero, 0.0, np.where(todo, out, np.inf))
+
+
+# --- a class over sites and frequencies --------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class VibrationThresholds:
+    """Thresholds of one class: `absolute` (I0) and `entrainment` (I1) probe amplitudes (mm),
+    shape (n_f, n_sites); the same at the site in the quantity's units (`*_stimulus`)."""
+
+    name: str
+    unit: str
+    frequency: np.ndarray
+    absolute: np.ndarray
+    entrainment: np.ndarray
+    absolute_stimulus: np.ndarray
+    entrainment_stimulus: np.ndarray
+
+    def best(self, criterion: str = "absolute") -> np.ndarray:
+        """The most sensitive site's threshold per frequency (mm): min over the sites."""
+        return np.min(getattr(self, criterion), axis=1)
+
+
+def _check(frequencies, transfer, static) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    f = np.atleast_1d(np.asarray(frequencies, dtype=float))
+    h = np.asarray(transfer, dtype=complex)
+    if h.ndim == 1:
+        h = h[:, None]
+    s0 = np.broadcast_to(np.asarray(static, dtype=float), (h.shape[1],)) if np.ndim(
+        static) <= 1 else None
+    if np.any(f <= 0) or not np.all(np.isfinite(f)):
+        raise InputError("frequencies", f"must be finite and > 0 Hz, got {f}.")
+    if h.shape[0] != len(f) or s0 is None:
+        raise InputError("transfer", f"shape {h.shape} for {len(f)} frequencies and static "
+                         f"shape {np.shape(static)}.", "give H as (n_frequencies, n_sites) "
+                         "and s0 as (n_sites,).")
+    return f, h, s0
+
+
+def _lanes(cls: ReceptorClass, f, s0):
+    """Unique (f, s0) lanes: s0 matters only to a class with a static weight."""
+    uses_static = any(w != 0 for w in cls.lif.weights[:2])
+    ff, ss = np.meshgrid(f, s0 if uses_static else np.zeros_like(s0), indexing="ij")
+    keys = np.stack([ff.ravel(), ss.ravel()], axis=1)
+    unique, inverse = np.unique(keys, axis=0, return_inverse=True)
+    return unique[:, 0], unique[:, 1], inverse.reshape(ff.shape)
+
+
+def vibration_thresholds(cls: ReceptorClass, frequencies, transfer, static, *,
+                         cycles: int = CYCLES, samples: int = SAMPLES,
+                         rtol: float = 1e-2) -> VibrationThresholds:
+    """I0 and I1 of a class at every frequency and site: the stimulus thresholds of the unique
+    (f, s0) lanes, divided by |H| (mm of probe amplitude; inf where |H| = 0)."""
+    f, h, s0 = _check(frequencies, transfer, static)
+    lf, ls, back = _lanes(cls, f, s0)
+    a0 = absolute_threshold_stimulus(cls.lif, lf, ls, cycles=cycles, samples=samples,
+                                     rtol=rtol)
+    a1 = entrainment_threshold_stimulus(cls.lif, lf, ls, cycles=cycles, samples=samples,
+                                        rtol=rtol, absolute=a0)
+    gain = np.abs(h)
+    with np.errstate(divide="ignore"):
+        return VibrationThresholds(cls.name, cls.unit, f, a0[back] / gain, a1[back] / gain,
+                                   a0[back], a1[back])
+
+
+def rate_vs_amplitude(cls: ReceptorClass, frequencies, transfer, static, amplitudes, *,
+                      cycles: int = 20, samples: int = SAMPLES) -> np.ndarray:
+    """Steady-state firing rate (spikes/s) for probe amplitudes A (mm), shape
+    (n_f, n_sites, n_A): mean spikes per counted cycle × f (resolution f / cycles)."""
+    f, h, s0 = _check(frequencies, transfer, static)
+    amps = np.atleast_1d(np.asarray(amplitudes, dtype=float))
+    ff = np.broadcast_to(f[:, None, None], (len(f), len(s0), len(amps)))
+    aa = np.abs(h)[:, :, None] * amps[None, None, :]
+    ss = np.broadcast_to(s0[None, :, None], ff.shape)
+    counts = cycle_response(cls.lif, ff.ravel(), aa.ravel(), ss.ravel(), cycles=cycles,
+                            samples=samples)
+    return (counts.mean(axis=1) * ff.ravel()).reshape(ff.shape)
+
+
+def sed_rate(cls: ReceptorClass, frequencies, transfer, static, amplitudes):
+    """The SED-proportional rate under vibration, (mean, peak) over a cycle (spikes/s), shape
+    (n_f, n_sites, n_A): k·mean([s0 + a sin θ]+) in closed form, and k·(s0 + a). For a class
+    with a gain that reads SED; an error otherwise."""
+    if cls.sed_gain is None or cls.quantity != "sed":
+        raise InputError(f"class {cls.name}", "has no SED-rate model (needs sed_gain and "
+                         "quantity = \"sed\").", "use a class such as SA1 of the default set.")
+    f, h, s0 = _check(frequencies, transfer, static)
+    a = np.abs(h)[:, :, None] * np.atleast_1d(np.asarray(amplitudes, dtype=float))
+    s = np.broadcast_to(np.maximum(s0, 0.0)[None, :, None], a.shape)
+    return cls.sed_gain * rectified_sine_mean(s, a), cls.sed_gain * (s + a)
+
+
+def rectified_sine_mean(s0, a):
+    """mean over θ of [s0 + a sin θ]+ for s0 >= 0: s0 if a <= s0, else
+    s0 (1/2 + β/π) + a cos β / π with β = arcsin(s0/a)."""
+    s0, a = np.broadcast_arrays(np.asarray(s0, dtype=float), np.asarray(a, dtype=float))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        beta = np.arcsin(np.clip(s0 / a, -1.0, 1.0))
+        above = s0 * (0.5 + beta / np.pi) + a * np.cos(beta) / np.pi
+    return np.where(a <= s0, s0, above)
+
+
+def quasi_static_rate(lif: LIF, current) -> np.ndarray:
+    """The closed-form rate of a constant current (re-exported for the checks)."""
+    return constant_current_rate(current, lif.tau, lif.refractory)
