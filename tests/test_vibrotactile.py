@@ -1,0 +1,179 @@
+"""Afferent responses to vibration (vibrotactile.py) against closed forms, each tolerance
+derived from the method: the vectorised integrator against the scalar one of receptors.py
+(same piecewise-linear current: identical counts), the constant-current rate, the
+quasi-static rate of a slow modulation, the periodic membrane of a linear low-pass, and the
+1/(ω|H|) and 1/(ω²|H|) threshold laws of rate- and acceleration-driven classes."""
+
+import math
+
+import numpy as np
+import pytest
+
+from fingertip_dolfinx import vibrotactile as vt
+from fingertip_dolfinx.errors import InputError
+from fingertip_dolfinx.receptors import LIF, constant_current_rate, lif_spikes, load_receptors
+
+N = vt.SAMPLES
+INTERP = (2 * math.pi / N) ** 2 / 8  # relative error of J's linear interpolation (smooth parts)
+
+
+def static_lif(tau=0.01, t_ref=0.002, p1=1.0, saturation=0.0):
+    return LIF(tau=tau, refractory=t_ref, saturation=saturation, weights=(p1, 0, 0, 0, 0, 0))
+
+
+# --- the integrator ------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("amplitude", [2e-5, 5e-5, 2e-4])
+def test_lanes_match_the_scalar_exact_integrator(amplitude):
+    """The same piecewise-linear current (one cycle of samples repeated) through
+    receptors.lif_spikes and through the vectorised lanes: the same spikes in every cycle."""
+    lif = load_receptors()["RA"].lif
+    f, cycles = 40.0, 6
+    j = vt.cycle_current(lif, f, amplitude, 0.0)
+    counts = vt.spike_counts(j, 1 / f, lif.tau, lif.refractory, cycles)[0]
+    t = np.linspace(0.0, cycles / f, cycles * N + 1)
+    j0, j1 = np.tile(j[0, :-1], cycles), np.tile(j[0, 1:], cycles)
+    spikes = lif_spikes(t, j0, j1, lif.tau, lif.refractory)
+    reference = np.histogram(spikes, bins=np.arange(cycles + 1) / f)[0]
+    assert reference.sum() > 0 or amplitude < 5e-5
+    np.testing.assert_array_equal(counts, reference)
+
+
+def test_a_constant_current_fires_at_the_closed_form_rate():
+    """a = 0, J = p1 s0 constant: a regular train of period P = t_ref + τ ln(J/(J − 1)); the
+    count over a window W is W/P to within one spike."""
+    lif = static_lif()
+    f, cycles = 10.0, 50
+    for s0 in (1.2, 3.0, 30.0):
+        counts = vt.cycle_response(lif, f, 0.0, s0, cycles=cycles)
+        period = 1 / constant_current_rate(s0, lif.tau, lif.refractory)
+        assert abs(counts.sum() - cycles / f / period) <= 1.0
+
+
+def test_a_slow_modulation_follows_the_quasi_static_rate():
+    """J = p1 (s0 + a sin ωt) with the ISI ≪ the period: the count over the window equals
+    ∫ r(J(t)) dt to within 1 + (window's spikes) × max|P'/P| δJ, where δJ = max|J'| · max ISI
+    bounds the change of J within one interval (each ISI lies between P(J ± δJ):
+    comparison principle)."""
+    lif = static_lif(tau=0.002, t_ref=0.001)
+    f, cycles, s0, a = 1.0, 4, 3.0, 1.0
+    counts = vt.cycle_response(lif, f, a, s0, cycles=cycles, samples=4096).sum()
+    theta = np.linspace(0.0, 2 * np.pi, 200001)
+    rate = constant_current_rate(s0 + a * np.sin(theta), lif.tau, lif.refractory)
+    expected = cycles / f * np.trapezoid(rate, theta) / (2 * np.pi)
+    period = lambda j: lif.refractory + lif.tau * np.log(j / (j - 1))  # noqa: E731
+    j_low = s0 - a
+    delta_j = a * 2 * np.pi * f * period(j_low)
+    log_slope = lif.tau / (j_low * (j_low - 1)) / period(j_low)  # max |P'/P| at the lowest J
+    assert abs(counts - expected) <= 1 + expected * log_slope * delta_j
+    assert expected > 1000  # the bound is a relative 5e-4 here, far below the cycle's 2:1 swing
+
+
+def test_the_periodic_membrane_of_a_linear_input_is_the_low_pass():
+    """J = p1 (s0 + a sin θ) without rectification: v_p = p1 s0 + p1 a sin(θ − atan ωτ) /
+    sqrt(1 + (ωτ)²); max to within the interpolation error p1 a (2π/N)²/8; and v_p is periodic."""
+    lif = static_lif(tau=0.01)
+    for f in (1.0, 15.9, 100.0):
+        wt = 2 * np.pi * f * lif.tau
+        j = vt.cycle_current(lif, f, 0.3, 0.5)
+        v, peak = vt.periodic_membrane(j, [1 / f], lif.tau)
+        assert v[0, -1] == pytest.approx(v[0, 0], rel=1e-12)
+        assert peak[0] == pytest.approx(0.5 + 0.3 / math.hypot(1, wt), abs=0.3 * INTERP)
+
+
+def test_the_absolute_threshold_of_a_linear_input_is_exact():
+    """From the low-pass: I0 = (1 − p1 s0) sqrt(1 + (ωτ)²) / p1, while no rectification acts
+    (I0 <= s0); tolerance: the bisection's rtol plus the interpolation error."""
+    lif = static_lif(tau=0.01, p1=1.0)
+    s0, rtol = 0.6, 1e-4
+    f = np.array([0.5, 5.0, 15.0])
+    got = vt.absolute_threshold_stimulus(lif, f, s0, rtol=rtol)
+    expected = (1 - s0) * np.hypot(1, 2 * np.pi * f * lif.tau)
+    np.testing.assert_allclose(got, expected, rtol=rtol + 2 * INTERP * 0.6 / 0.4)
+
+
+# --- threshold laws of the classes -----------------------------------------------------------
+
+
+@pytest.mark.parametrize("name, power", [("RA", 1), ("PC", 2)])
+def test_rate_and_acceleration_classes_follow_omega_laws(name, power):
+    """RA reads [ṡ]±, PC [s̈]±: with no saturation and ωτ ≪ 1 the membrane follows J, so
+    I0 = 1/(p ω^k) times a factor in [1, 1/(1 − (ωτ)²)] (v(t*) >= Jmax (1 − (ωτ)²), since
+    [cos]+ >= 1 − θ²/2), the interpolation error and the bisection's rtol on top. On the probe:
+    I0 / |H| for every site."""
+    lif0 = load_receptors()[name].lif
+    lif = LIF(tau=lif0.tau, refractory=lif0.refractory, saturation=0.0, weights=lif0.weights)
+    p = lif.weights[2 * power]
+    rtol = 1e-4
+    omega_tau = np.array([0.02, 0.05, 0.1])
+    f = omega_tau / (2 * np.pi * lif.tau)
+    got = vt.absolute_threshold_stimulus(lif, f, 0.0, rtol=rtol)
+    law = 1 / (p * (2 * np.pi * f) ** power)
+    assert np.all(got >= law * (1 - INTERP))
+    assert np.all(got <= law / (1 - omega_tau**2) * (1 + INTERP) * (1 + rtol))
+    # on the probe: the same stimulus threshold divided by |H|, whatever the phase
+    cls = load_receptors()[name]
+    gains = np.array([0.5, 1.0, 4.0]) * np.exp(1j * np.array([0.0, 1.0, -2.0]))
+    th = vt.vibration_thresholds(cls, f[:1], gains[None, :], np.zeros(3), rtol=rtol)
+    np.testing.assert_allclose(th.absolute[0] * np.abs(gains), th.absolute_stimulus[0, 0],
+                               rtol=1e-14)
+
+
+def test_entrainment_at_low_frequency_equals_the_absolute_threshold():
+    """ωτ ≪ 1: every cycle starts from the silent half-cycle's v ≈ 0 (to e^{−T/2τ}), so a spike
+    in one cycle is a spike in all: I1 = I0 to the two bisections' rtol. I1 >= I0 always; I1 =
+    inf when the period is below the refractory period."""
+    lif = load_receptors()["RA"].lif
+    rtol = 1e-3
+    f = np.array([2.0, 5.0, 900.0])
+    i0 = vt.absolute_threshold_stimulus(lif, f, 0.0, rtol=rtol)
+    i1 = vt.entrainment_threshold_stimulus(lif, f, 0.0, rtol=rtol, absolute=i0)
+    np.testing.assert_allclose(i1[:2], i0[:2], rtol=2.5 * rtol)
+    assert 1 / f[2] < lif.refractory and i1[2] == np.inf
+    mid = np.geomspace(20, 400, 5)
+    i0m = vt.absolute_threshold_stimulus(lif, mid, 0.0, rtol=rtol)
+    i1m = vt.entrainment_threshold_stimulus(lif, mid, 0.0, rtol=rtol, absolute=i0m)
+    assert np.all(i1m >= i0m * (1 - 2 * rtol))
+
+
+def test_rate_grows_from_zero_to_one_per_cycle_between_the_thresholds():
+    """Freeman & Johnson's ramp: 0 impulses/cycle below I0, 1 per cycle at I1 and a little
+    above, monotone in between (one RA site, 40 Hz)."""
+    cls = load_receptors()["RA"]
+    f = 40.0
+    th = vt.vibration_thresholds(cls, [f], [[1.0]], [0.0], rtol=1e-3)
+    i0, i1 = th.absolute[0, 0], th.entrainment[0, 0]
+    amps = np.array([0.98 * i0, i1 * 1.01])
+    rates = vt.rate_vs_amplitude(cls, [f], [[1.0]], [0.0], amps)[0, 0]
+    assert rates[0] == 0.0 and rates[1] == pytest.approx(f)
+    ramp = vt.rate_vs_amplitude(cls, [f], [[1.0]], [0.0], np.geomspace(i0, i1, 8))[0, 0]
+    assert np.all(np.diff(ramp) >= -f / 20)  # monotone to one count in the 20 cycles
+
+
+# --- the SED rate and the checks -----------------------------------------------------------
+
+
+def test_sed_rate_is_the_mean_of_the_rectified_stimulus():
+    s0 = np.array([0.0, 1.0, 1.0, 1.0])
+    a = np.array([1.0, 0.5, 1.0, 3.0])
+    theta = np.linspace(0.0, 2 * np.pi, 2_000_001)
+    numeric = [np.trapezoid(np.maximum(s + b * np.sin(theta), 0), theta) / (2 * np.pi)
+               for s, b in zip(s0, a)]
+    np.testing.assert_allclose(vt.rectified_sine_mean(s0, a), numeric, rtol=1e-10)
+    assert vt.rectified_sine_mean(0.0, 1.0) == pytest.approx(1 / np.pi, rel=1e-15)
+    sa1 = load_receptors()["SA1"]
+    mean, peak = vt.sed_rate(sa1, [10.0], [[2.0]], [1e-4], [1e-5, 1e-4])
+    np.testing.assert_allclose(mean[0, 0], sa1.sed_gain * np.array([1e-4, 2e-4 / np.pi * (
+        math.sqrt(3) / 2) + 1e-4 * (0.5 + math.asin(0.5) / np.pi)]), rtol=1e-12)
+    np.testing.assert_allclose(peak[0, 0], sa1.sed_gain * (1e-4 + 2 * np.array([1e-5, 1e-4])))
+
+
+def test_bad_input_is_named():
+    cls = load_receptors()["RA"]
+    with pytest.raises(InputError, match="transfer"):
+        vt.vibration_thresholds(cls, [10.0, 20.0], np.ones((3, 2)), np.zeros(2))
+    with pytest.raises(InputError, match="frequencies"):
+        vt.vibration_thresholds(cls, [0.0], np.ones((1, 2)), np.zeros(2))
+    with pytest.raises(InputError, match="SED-rate"):
+        vt.sed_rate(cls, [10.0], [[1.0]], [0.0], [1.0])
