@@ -300,6 +300,11 @@ def _run_sweep(args) -> int:
         f"{'not bracketed' if threshold is None else f'{threshold:.2f} mm'} "
         f"({result['threshold_criterion']}); results in {args.out}"
     )
+    if "population" in result:
+        pop = result["population"]
+        fmt = lambda x: "not bracketed" if x is None else f"{x:.2f} mm"  # noqa: E731
+        _rank0_print(f"SA1 population: threshold {fmt(pop['threshold_mm'])}, smallest resolved "
+                     f"spacing {fmt(pop['smallest_resolved_mm'])} ({pop['criterion']})")
     return 0
 
 

@@ -17,6 +17,21 @@ threshold is the spacing at which the mean of V over e11, e22 and SED (the
 quantities the paper names) falls `DROP` = 10 % below its value at the largest spacing, i.e. the
 dip between the bars has lost a tenth of what well separated bars produce; linear
 interpolation between the computed spacings.
+
+**Population criterion** (from the SA1 afferents, next to the strain one). At the output time
+the SA1 population response along the pulp is the SED-rate model at the SA1 sites, r_i =
+k SED_i (`receptors`; one value per site, 1.195 mm apart). Two bars read as two when the
+profile has two local maxima and the lowest site between the two largest is at most
+`RESOLVED` = 8/π² ≈ 0.81 of the smaller of them: the Rayleigh criterion of optics for two 1-D
+(slit) diffraction patterns sinc², whose sum at the first-zero separation dips to exactly
+2 sinc²(1/2) = 8/π² of the peak. Borrowing it for afferent populations is this package's
+assumption (no afferent-population criterion was verified in the literature); a dip ratio is
+1 when the profile has one maximum. The population threshold is the spacing at which the dip
+ratio crosses RESOLVED (linear interpolation between computed spacings), with the smallest
+computed spacing that passes (and every larger one does too). The sites sample the pulp
+discretely: bars closer than about two site spacings share their nearest site, which bounds
+what this criterion can resolve (on the coarse default run: one peak at d = 1.2 mm, two at
+1.5 mm and above).
 """
 
 from __future__ import annotations
@@ -32,6 +47,10 @@ from .outputs import read_csv, write_json
 QUANTITIES = ("e11", "e22", "e12", "u2", "sed")
 _COLUMNS = {"e11": "e11", "e22": "e22", "e12": "e12", "u2": "u2_mm", "sed": "sed_MPa"}
 DROP = 0.10
+RESOLVED = 8 / np.pi**2
+POPULATION_CRITERION = (f"SA1 SED-rate profile at the sites: two local maxima with the lowest "
+                        f"site between them <= 8/pi^2 = {RESOLVED:.3f} of the smaller (1-D "
+                        f"Rayleigh); linear interpolation of that dip ratio between spacings")
 CRITERION = (f"spacing at which the mean normalised variation of e11, e22 and SED falls "
              f"{DROP:.0%} below its value at the largest spacing (linear interpolation)")
 
@@ -76,12 +95,69 @@ def threshold(spacings: np.ndarray, variations: dict) -> float | None:
     return None
 
 
-def run_sweep(scene_name: str, spacings, out: Path, overrides=(), progress=True) -> dict:
+def dip_ratio(profile) -> float:
+    """Lowest value between the two largest local maxima over the smaller maximum (samples in
+    order along x); 1.0 when there are fewer than two interior maxima (one peak, no dip)."""
+    p = np.asarray(profile, dtype=float)
+    inner = np.flatnonzero((p[1:-1] > p[:-2]) & (p[1:-1] >= p[2:])) + 1
+    if len(inner) < 2:
+        return 1.0
+    i, j = sorted(inner[np.argsort(p[inner])[-2:]])
+    return float(p[i:j + 1].min() / min(p[i], p[j]))
+
+
+def population_profile(run_dir, time_s: float, name: str = "SA1") -> tuple[np.ndarray, ...]:
+    """(x_mm, rate) of a class's SED-rate model (k SED) at its sites at `time_s`, from a run
+    written with `output.receptors`, ordered along x."""
+    from .receptors import load_receptors
+    from .result import Result
+
+    table = Result(run_dir).receptors()
+    rows = (table["class"] == name) & np.isclose(table["time_s"], time_s)
+    order = np.argsort(table["x_mm"][rows])
+    recorded = Path(run_dir) / "receptors.json"
+    gain = _recorded_gain(recorded, name) if recorded.exists() else load_receptors()[name].sed_gain
+    return table["x_mm"][rows][order], gain * np.maximum(table["sed_MPa"][rows][order], 0.0)
+
+
+def _recorded_gain(path: Path, name: str) -> float:
+    import json
+
+    from .receptors import receptors_from_dict
+
+    return receptors_from_dict(json.loads(path.read_text()), str(path))[name].sed_gain
+
+
+def population_threshold(spacings, ratios, fraction: float = RESOLVED) -> dict:
+    """From the dip ratios per spacing: `smallest_resolved_mm` (the smallest spacing that
+    passes, ratio <= fraction, with every larger one passing too; None if the largest fails)
+    and `threshold_mm` (the ratio's crossing of `fraction`, linear interpolation; None unless
+    bracketed by a failing and a passing spacing)."""
+    order = np.argsort(spacings)
+    d, r = np.asarray(spacings, dtype=float)[order], np.asarray(ratios, dtype=float)[order]
+    passing = r <= fraction
+    smallest, crossing = None, None
+    for i in range(len(d) - 1, -1, -1):
+        if not passing[i]:
+            if smallest is not None:
+                crossing = float(d[i] + (fraction - r[i]) / (r[i + 1] - r[i]) * (d[i + 1] - d[i]))
+            break
+        smallest = float(d[i])
+    return {"smallest_resolved_mm": smallest, "threshold_mm": crossing}
+
+
+def run_sweep(scene_name: str, spacings, out: Path, overrides=(), progress=True,
+              population: bool = True) -> dict:
+    """Run the scene at every spacing side by side, then the strain threshold and (with
+    `population`: the runs sample the default receptor set) the SA1 population's."""
     from .runner import run_side_by_side
     from .scene import load_scene
 
     world = MPI.COMM_WORLD
     out = Path(out)
+    overrides = list(overrides)
+    if population and not any(str(o).startswith("output.receptors") for o in overrides):
+        overrides.append('output.receptors="default"')
     run_side_by_side([(load_scene(scene_name, list(overrides), spacing=d), out / f"d{d:g}")
                       for d in spacings], progress=progress)
 
@@ -111,6 +187,10 @@ def run_sweep(scene_name: str, spacings, out: Path, overrides=(), progress=True)
             "threshold_mm": threshold(np.array(spacings), table),
             "threshold_criterion": CRITERION,
         }
+        if all((out / f"d{d:g}" / "receptors.csv").exists() for d in spacings):
+            ratios = [dip_ratio(population_profile(out / f"d{d:g}", t)[1]) for d in spacings]
+            result["population"] = {"dip_ratio": ratios, "criterion": POPULATION_CRITERION,
+                                    **population_threshold(spacings, ratios)}
         _plot(np.array(spacings), table, out / "normalized_variation.png", result["threshold_mm"])
     result = world.bcast(result, root=0)
     write_json(out / "summary.json", result, world)
