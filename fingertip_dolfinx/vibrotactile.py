@@ -73,6 +73,7 @@ SAMPLES = 64  # samples of J per cycle (divisible by 4): J interpolation error <
 SETTLE = 3  # cycles discarded at least (more for slow membranes, see _settle)
 CYCLES = 10  # cycles counted
 MAX_SETTLE = 20
+SECTIONS = 6  # amplitudes per lane and round of the threshold search
 NEWTON = 12  # iterations for a crossing time (monotone, quadratic: round-off in ~6)
 
 
@@ -141,12 +142,16 @@ def _first_crossing(v, j, m, tau, h):
         # Newton converges monotonically: from 0 on a concave piece (the tangent lies above f,
         # so every iterate stays left of the root), from `high` on a convex one (below f).
         cc, mm, top = c[cross], m[cross], high[cross]
+        const = j[cross] - mm * tau - 1.0
         x = np.where(cc < 0, 0.0, top)
-        for _ in range(NEWTON):
-            slope = mm - cc / tau * np.exp(-x / tau)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                step = f(x, cross) / slope
-            x = np.clip(x - np.where(slope > 0, step, 0.0), 0.0, top)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            for _ in range(NEWTON):
+                decay = cc * np.exp(-x / tau)
+                slope = mm - decay / tau
+                step = np.where(slope > 0, (const + mm * x + decay) / slope, 0.0)
+                x = np.minimum(np.maximum(x - step, 0.0), top)
+                if np.all(np.abs(step) <= 1e-15 * top):
+                    break
         out[cross] = x
     return out
 
@@ -218,36 +223,38 @@ def cycle_response(lif: LIF, frequency, a, s0, *, cycles: int = CYCLES,
 # --- thresholds ------------------------------------------------------------------------------
 
 
-def _bisect(predicate, low, high, rtol: float) -> np.ndarray:
-    """Smallest amplitude in (low, high] where predicate holds, per lane, to rtol
-    (geometric bisection; predicate(high) must hold and be monotone in the amplitude)."""
-    low, high = np.array(low, dtype=float), np.array(high, dtype=float)
-    todo = np.isfinite(high) & (high > 0)
-    while np.any(todo & (high > low * (1 + rtol))):
-        lanes = todo & (high > low * (1 + rtol))
-        mid = np.where(low > 0, np.sqrt(low * high), 0.5 * high)
-        ok = predicate(mid[lanes], lanes)
-        high[np.flatnonzero(lanes)[ok]] = mid[lanes][ok]
-        low[np.flatnonzero(lanes)[~ok]] = mid[lanes][~ok]
-    return high
-
-
-def _bracket(predicate, guess, lanes, limit: float = 1e12,
-             low=None) -> tuple[np.ndarray, np.ndarray]:
-    """(low, high) with predicate(high) true, by quadrupling from guess (inf: not within
-    guess × limit); `low`: a known lower bound (default 0)."""
-    low = np.zeros_like(guess) if low is None else np.array(low, dtype=float)
-    high = guess.copy()
-    todo = lanes.copy()
-    while np.any(todo):
-        ok = np.zeros(len(guess), dtype=bool)
-        ok[todo] = predicate(high[todo], todo)
-        todo &= ~ok
-        low[todo] = high[todo]
-        high[todo] *= 4.0
-        over = todo & (high > guess * limit)
-        high[over], todo[over] = np.inf, False
-    return low, high
+def _search(predicate, guess, todo, rtol: float, low=None, sections: int = 0,
+            limit: float = 1e12) -> np.ndarray:
+    """Smallest amplitude at which `predicate` holds, per lane, to rtol: a k-section search
+    (k = `sections` amplitudes per lane and round, evaluated in one batch), the predicate
+    assumed monotone in the amplitude. predicate(a, idx) -> bool for amplitudes a of the lanes
+    idx (repeats allowed). Rounds: upward by factors 4 from `guess` (or above `low`, a known
+    failing amplitude) while every candidate fails; downward while every one passes; then
+    geometric sections of (low, high]. inf where nothing up to guess × limit passes."""
+    k = sections or SECTIONS
+    guess = np.asarray(guess, dtype=float)
+    low = np.zeros(len(guess)) if low is None else np.array(low, dtype=float)
+    high = np.full(len(guess), np.inf)
+    active = np.array(todo, dtype=bool) & np.isfinite(guess) & (guess > 0)
+    steps = np.arange(k, dtype=float)
+    while np.any(active):
+        idx = np.flatnonzero(active)
+        lo, hi, g = low[idx], high[idx], guess[idx]
+        base = np.where(lo >= g, 4 * lo, g)
+        up = base[:, None] * 4.0 ** steps
+        down = hi[:, None] * 4.0 ** -(steps + 1)
+        ratio = np.where(lo > 0, hi / np.where(lo > 0, lo, 1.0), 1.0)
+        mid = lo[:, None] * ratio[:, None] ** ((steps + 1) / (k + 1))
+        cand = np.where(~np.isfinite(hi)[:, None], up, np.where((lo > 0)[:, None], mid, down))
+        ok = predicate(cand.ravel(), np.repeat(idx, k)).reshape(cand.shape)
+        new_high = np.minimum(np.min(np.where(ok, cand, np.inf), axis=1), hi)
+        failing = ~ok & (cand < new_high[:, None])
+        low[idx] = np.maximum(np.max(np.where(failing, cand, 0.0), axis=1), lo)
+        high[idx] = new_high
+        over = ~np.isfinite(new_high) & (cand[:, -1] > g * limit)
+        tiny = (low[idx] == 0) & (new_high < g / limit)
+        active[idx] = ~over & ~tiny & ~(new_high <= low[idx] * (1 + rtol))
+    return np.where(np.array(todo, dtype=bool), high, np.inf)
 
 
 def _guess(lif: LIF, frequency: np.ndarray) -> np.ndarray:
@@ -282,8 +289,7 @@ def absolute_threshold_stimulus(lif: LIF, frequency, s0=0.0, *, cycles: int = CY
             out[~quiet] = counts > static_count[lanes][~quiet]
         return out
 
-    low, high = _bracket(fires, _guess(lif, f), np.ones(len(f), dtype=bool))
-    return _bisect(fires, low, high, rtol)
+    return _search(fires, _guess(lif, f), np.ones(len(f), dtype=bool), rtol)
 
 
 def entrainment_threshold_stimulus(lif: LIF, frequency, s0=0.0, *, cycles: int = CYCLES,
@@ -306,12 +312,11 @@ def entrainment_threshold_stimulus(lif: LIF, frequency, s0=0.0, *, cycles: int =
     zero = possible & (saturate(rectified_input(s0, 0.0, 0.0, lif.weights),
                                 lif.saturation) > 1.0)
     if np.any(zero):
-        at_zero[zero] = entrained(np.zeros(zero.sum()), zero)
+        at_zero[zero] = entrained(np.zeros(zero.sum()), np.flatnonzero(zero))
     todo = possible & ~at_zero
     start = np.where(todo, np.maximum(absolute, 1e-300), np.inf)
-    low, high = _bracket(entrained, start, todo, low=start * (1 - 2 * rtol))
-    out = _bisect(entrained, low, high, rtol)
-    return np.where(at_zero, 0.0, np.where(todo, out, np.inf))
+    out = _search(entrained, start, todo, rtol, low=np.where(todo, start * (1 - 2 * rtol), 0))
+    return np.where(at_zero, 0.0, out)
 
 
 # --- a class over sites and frequencies --------------------------------------------------------
@@ -417,3 +422,99 @@ def rectified_sine_mean(s0, a):
 def quasi_static_rate(lif: LIF, current) -> np.ndarray:
     """The closed-form rate of a constant current (re-exported for the checks)."""
     return constant_current_rate(current, lif.tau, lif.refractory)
+
+
+# --- published afferent tuning, to overlay -------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Published:
+    """A published fact about vibrotactile sensitivity: the band of best frequencies (Hz),
+    and a threshold amplitude (mm) where one was read; `source` (exact citation), `read`
+    (what was read: primary abstract or secondary table) and `note`."""
+
+    cls: str  # "SA1", "RA", "PC" or "psychophysics"
+    band: tuple[float, float] | None
+    amplitude: float | None
+    source: str
+    read: str
+    note: str = ""
+
+
+#: Verified by reading (see `read`); nothing else is overlaid. NOT verified (not overlaid):
+#: the threshold points RECEPTORS.md lists (PC ~0.05 µm near 250-340 Hz, SA1 ~6 µm near
+#: 16 Hz, RA ~47 µm near 33 Hz): digitised curves in github.com/ouyangqq/model_tactile_pop_
+#: response, Data/txtdata/fitting_NTH_*.txt and Neural_threhold_all.txt, whose original
+#: source, preparation and threshold definition are named nowhere in that repository (its
+#: Fig.4_Model_fitting.py only loads them); no primary source with those numbers was found.
+#: Talbot et al. 1968 (J Neurophysiol 31:301) and Mountcastle, LaMotte & Carli 1972 could not
+#: be read (no abstract found): their "tuning point" naming is left out.
+PUBLISHED = (
+    Published("RA", (8.0, 64.0), None,
+              "Johansson, Landström & Lundström 1982, Brain Res 244:17-25, "
+              "doi 10.1016/0006-8993(82)90899-x",
+              "abstract (PubMed): 'The rapidly adapting units (RA) were most easily excited at "
+              "stimulus frequencies between 8 and 64 Hz'",
+              "human median nerve, 0.5-400 Hz, 0.001-1 mm; cycle response = impulses per cycle"),
+    Published("PC", (64.0, 400.0), None,
+              "Johansson, Landström & Lundström 1982, Brain Res 244:17-25",
+              "abstract: 'the corresponding frequencies for the Pacinian units (PC) were above "
+              "64 Hz' (400 Hz: the highest frequency tested)"),
+    Published("SA1", None, None,
+              "Johansson, Landström & Lundström 1982, Brain Res 244:17-25",
+              "abstract: 'The sensitivities of the slowly adapting unit types (SA I and SA II) "
+              "were greatest at lower frequencies' (no band given)"),
+    Published("RA", (40.0, 60.0), 2e-5,
+              "table 1 of doi 10.1152/jn.90990.2008 (J Neurophysiol 101:1033-1042, 2009), "
+              "a secondary summary of primate afferents",
+              "'RA afferent ... 40-60 Hz  Threshold >= 2 x 10^-5 mm' (as printed; its primary "
+              "sources not read)",
+              "a lower bound, not a typical threshold"),
+    Published("PC", (200.0, 300.0), 1e-5,
+              "table 1 of doi 10.1152/jn.90990.2008 (secondary)",
+              "'PC afferent ... 200-300 Hz  Threshold >= 10^-5 mm' (as printed)",
+              "a lower bound, not a typical threshold"),
+    Published("psychophysics", (250.0, 300.0), None,
+              "Gescheider & Verrillo, 'Vibrotactile frequency characteristics as determined by "
+              "adaptation and masking procedures', doi 10.1007/978-1-4613-3039-4_10",
+              "chapter abstract: the vibrotactile threshold 'is a U-shaped function of frequency "
+              "with the lowest values at approximately 250-300 Hz'; with contactors >= 2.9 cm² "
+              "(Verrillo 1963) flat to 40 Hz, then falling 12 dB/octave to ~250 Hz"),
+)
+
+
+def plot_threshold_curves(curves, path, *, published=PUBLISHED, title: str = "") -> None:
+    """Threshold vs frequency, log-log, amplitudes in µm: per class (colour) the most
+    sensitive site's absolute threshold I0 (solid) and 1:1 entrainment threshold I1 (dashed);
+    published bands of best frequency as shaded spans (hatched for the psychophysical one)
+    and published threshold amplitudes as horizontal bars over their band.
+    `curves`: VibrationThresholds, one per class."""
+    from matplotlib.figure import Figure
+
+    colours = {"SA1": "tab:blue", "RA": "tab:green", "PC": "tab:red",
+               "psychophysics": "0.5"}
+    fig = Figure(figsize=(6.4, 4.6))
+    ax = fig.subplots()
+    for th in curves:
+        c = colours.get(th.name, "k")
+        for criterion, style in (("absolute", "-"), ("entrainment", "--")):
+            y = th.best(criterion) * 1e3
+            keep = np.isfinite(y) & (y > 0)
+            ax.loglog(th.frequency[keep], y[keep], style, color=c,
+                      label=f"{th.name} {'I0 absolute' if style == '-' else 'I1 1:1'}")
+    for p in published:
+        c = colours.get(p.cls, "k")
+        if p.band is not None and p.amplitude is None:
+            ax.axvspan(*p.band, color=c, alpha=0.08, hatch="//" if p.cls == "psychophysics"
+                       else None)
+        elif p.band is not None:
+            ax.plot(p.band, [p.amplitude * 1e3] * 2, color=c, lw=4, alpha=0.5,
+                    solid_capstyle="butt")
+    ax.set_xlabel("frequency (Hz)")
+    ax.set_ylabel("probe amplitude at threshold (µm)")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=7, ncol=2)
+    ax.set_title(title or "afferent thresholds (most sensitive site); shaded: published "
+                 "best bands", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=150)

@@ -177,3 +177,13 @@ def test_bad_input_is_named():
         vt.vibration_thresholds(cls, [0.0], np.ones((1, 2)), np.zeros(2))
     with pytest.raises(InputError, match="SED-rate"):
         vt.sed_rate(cls, [10.0], [[1.0]], [0.0], [1.0])
+
+
+def test_the_threshold_figure_is_drawn(tmp_path):
+    pop = load_receptors()
+    f = np.geomspace(5, 500, 6)
+    curves = [vt.vibration_thresholds(pop[name], f, np.ones((6, 2)), np.zeros(2))
+              for name in ("RA", "PC")]
+    vt.plot_threshold_curves(curves, tmp_path / "thresholds.png")
+    assert (tmp_path / "thresholds.png").stat().st_size > 10_000
+    assert all(p.source and p.read for p in vt.PUBLISHED)
