@@ -148,6 +148,10 @@ def test_two_point_sweep_reproduces_the_papers_trends(tmp_path_factory):
     for name in ("normalized_variation.csv", "normalized_variation.png", "profiles_by_spacing.png"):
         assert (out / name).exists(), name
     assert result["threshold_criterion"]
+    # the SA1 population (sites 1.195 mm apart) resolves every spacing here: no crossing
+    population = result["population"]
+    assert population["smallest_resolved_mm"] == 2.0 and population["threshold_mm"] is None
+    assert max(population["dip_ratio"]) < 0.81
 
 
 def test_an_impossible_indentation_stops_clearly_and_keeps_the_results(tmp_path):

@@ -187,3 +187,16 @@ def test_the_threshold_figure_is_drawn(tmp_path):
     vt.plot_threshold_curves(curves, tmp_path / "thresholds.png")
     assert (tmp_path / "thresholds.png").stat().st_size > 10_000
     assert all(p.source and p.read for p in vt.PUBLISHED)
+
+
+def test_a_site_already_firing_has_no_threshold():
+    """SA1 reads [s]+ of SED (p1 = 1e6 /MPa, p7 = 10: the rheobase lies at SED = 10/9 × 1e-6
+    MPa): a pressed site above it fires without vibration, so neither threshold applies (NaN);
+    `best` takes the sites at rest. Below it, the threshold falls as s0 rises."""
+    sa1 = load_receptors()["SA1"]
+    rheobase = 1e-6 * 10 / 9
+    s0 = np.array([0.0, 0.5 * rheobase, 2 * rheobase])
+    th = vt.vibration_thresholds(sa1, [5.0], np.ones((1, 3)), s0)
+    assert np.isnan(th.absolute[0, 2]) and np.isnan(th.entrainment[0, 2])
+    assert th.absolute[0, 1] < th.absolute[0, 0] < np.inf
+    assert th.best("absolute")[0] == th.absolute[0, 1]
