@@ -71,7 +71,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import InputError
-from .receptors import LIF, ReceptorClass, constant_current_rate, rectified_input, saturate
+from .receptors import LIF, ReceptorClass, rectified_input, saturate
 
 SAMPLES = 64  # samples of J per cycle (divisible by 4): J interpolation error <= 1.2e-3 relative
 SETTLE = 3  # cycles discarded at least (more for slow membranes, see _settle)
@@ -398,7 +398,7 @@ def sed_rate(cls: ReceptorClass, frequencies, transfer, static, amplitudes):
     if cls.sed_gain is None or cls.quantity != "sed":
         raise InputError(f"class {cls.name}", "has no SED-rate model (needs sed_gain and "
                          "quantity = \"sed\").", "use a class such as SA1 of the default set.")
-    f, h, s0 = _check(frequencies, transfer, static)
+    _, h, s0 = _check(frequencies, transfer, static)
     a = np.abs(h)[:, :, None] * np.atleast_1d(np.asarray(amplitudes, dtype=float))
     s = np.broadcast_to(np.maximum(s0, 0.0)[None, :, None], a.shape)
     return cls.sed_gain * rectified_sine_mean(s, a), cls.sed_gain * (s + a)
@@ -412,11 +412,6 @@ def rectified_sine_mean(s0, a):
         beta = np.arcsin(np.clip(s0 / a, -1.0, 1.0))
         above = s0 * (0.5 + beta / np.pi) + a * np.cos(beta) / np.pi
     return np.where(a <= s0, s0, above)
-
-
-def quasi_static_rate(lif: LIF, current) -> np.ndarray:
-    """The closed-form rate of a constant current (re-exported for the checks)."""
-    return constant_current_rate(current, lif.tau, lif.refractory)
 
 
 # --- published afferent tuning, to overlay -------------------------------------------------
