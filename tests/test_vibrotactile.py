@@ -200,3 +200,18 @@ def test_a_site_already_firing_has_no_threshold():
     assert np.isnan(th.absolute[0, 2]) and np.isnan(th.entrainment[0, 2])
     assert th.absolute[0, 1] < th.absolute[0, 0] < np.inf
     assert th.best("absolute")[0] == th.absolute[0, 1]
+
+
+def test_agrees_with_the_sampled_threshold_of_receptors():
+    """receptors.threshold_amplitude (400 samples per cycle, finite-difference rates, from
+    rest) and I0 here (exact rates, periodic state) at frequencies where the start-up does not
+    matter: both to their rtol (1e-4, 1e-3) plus the differences' O((2π/400)²) = 2.5e-4 and the
+    interpolation error here."""
+    from fingertip_dolfinx.receptors import threshold_amplitude
+
+    pop = load_receptors()
+    for name, f in (("RA", 5.0), ("PC", 20.0)):
+        lif = pop[name].lif
+        here = vt.absolute_threshold_stimulus(lif, [f], 0.0, rtol=1e-3)[0]
+        there = threshold_amplitude(lif, f)
+        assert here == pytest.approx(there, rel=1e-3 + 1e-4 + 2.5e-4 + INTERP)
