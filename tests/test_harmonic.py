@@ -168,3 +168,82 @@ def test_bad_state_and_frequency_are_named(pressed):
         press(problem, RampHold(1.0, 1.0, 1.0), "frozen")
     with pytest.raises(InputError, match="harmonic.frequencies"):
         solver.solve(-1.0)
+
+
+# --- the frequency route of a scene -------------------------------------------------------------
+
+
+def _sampled_quantities(problem, points) -> dict[str, np.ndarray]:
+    """sed, −e_min and −σ22 total at `points` at the current (accepted) state, as the receptor
+    recorder samples them."""
+    from fingertip_dolfinx.post import CauchyStress, DerivedFields, PointSampler
+
+    derived = DerivedFields(problem.u, problem.fmesh.cell_tags, problem.region_energies())
+    derived.update()
+    laws = {problem.tags[n]: law for n, law in problem.laws.regions.items()}
+    stress = CauchyStress(problem.u, problem.fmesh.cell_tags, laws,
+                          problem.options.quadrature_degree)
+    stress.update()
+    sample = PointSampler(problem.mesh, points)
+    p = PointSampler(problem.submesh, points)(problem.p)[:, 0]
+    return {"sed": sample(derived.sed)[:, 0],
+            "compressive_strain": -sample(derived.principal)[:, 1],
+            "compressive_stress": -(sample(stress.stress)[:, 3] - p)}
+
+
+def test_site_transfer_at_two_hertz_is_the_instantaneous_change(pressed):
+    """The transfer functions to the stimulus quantities at points in the subcutaneous tissue
+    under the bar (where sed, −e_min and −σ22 − p all respond): Re of the 2 Hz transfer equals
+    the central difference of the quantities over one vanishing step to d ± δ, to 1 %: the
+    exact derivatives, the pore pressure and the QLV split δσ = Dσ|_{S0} + (G* − g∞) F DS_e Fᵀ/J
+    agree with the nonlinear model."""
+    from fingertip_dolfinx.frequency_response import SiteTransfer
+    from fingertip_dolfinx.harmonic import TimeStepper, StepOptions, BACKWARD_EULER
+
+    problem, solver = pressed
+    points = np.array([[0.0, problem.y_touch + 2.0], [0.3, problem.y_touch + 2.5]])
+    transfer = SiteTransfer(problem, points)(solver.solve(2.0))
+    depth, delta = problem.indentation(problem.time), 1e-4
+    saved = {k: a.copy() for k, a in problem.state_arrays().items()}
+    stepper = TimeStepper(problem, StepOptions(), prefix="transfer_check_")
+    values = []
+    problem.dt.value = 1e-9
+    problem.rate_weights.value[:] = BACKWARD_EULER
+    for d in (depth + delta, depth - delta):
+        for o in problem.obstacles:
+            o.y_tip.value = problem.y_touch + d
+        assert stepper.solve_once()[0] > 0
+        values.append(_sampled_quantities(problem, points))
+        problem.restore()
+    stepper.close()
+    problem.set_time(problem.time)
+    for name, array in problem.state_arrays().items():
+        array[:] = saved[name]
+    for q, v in transfer.items():
+        difference = (values[0][q] - values[1][q]) / (2 * delta)
+        assert v.real == pytest.approx(difference, rel=1e-2), q
+
+
+def test_run_writes_the_frequency_route(shared_tmp_path):
+    """`fingertip run vibrotactile --frequencies ...`: the tables, the summary, the figures."""
+    import csv
+    import json
+
+    from fingertip_dolfinx.cli import main
+
+    out = shared_tmp_path / "vib"
+    args = ["run", "vibrotactile", "--frequencies", "10,100,250", "--out", str(out), "--quiet",
+            *(f"--set={o}" for o in COARSE)]
+    assert main(args) == 0
+    rows = list(csv.DictReader((out / "frequency_response.csv").open()))
+    assert [float(r["frequency_Hz"]) for r in rows] == [10.0, 100.0, 250.0]
+    for r in rows:  # |Z| = |K|/ω
+        f = float(r["frequency_Hz"])
+        assert float(r["Z_abs_Ns_per_mm2"]) == pytest.approx(
+            float(r["K_abs_N_per_mm2"]) / (2 * math.pi * f), rel=1e-9)
+    sites = list(csv.DictReader((out / "receptor_transfer.csv").open()))
+    assert len(sites) % 3 == 0 and {s["class"] for s in sites} == {"SA1", "RA", "PC"}
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["pressed_state"]["kind"] == "held" and summary["dofs"] > 0
+    assert (out / "impedance.png").exists() and (out / "receptor_transfer_PC.png").exists()
+    assert main(["run", "vibrotactile", "--frequencies", "0:1:3", "--out", str(out)]) == 2
