@@ -13,8 +13,8 @@ r"""The frequency route of a scene: pressed state, then the small-signal respons
    the drive to the stimulus quantities of `receptors.QUANTITIES` (sed, compressive_strain =
    −e_min, compressive_stress = −σ22 total), amplitude per µm of drive and phase (degrees), at
    the sites of the scene's `[output] receptors` set ("default" if none);
-5. summary.json (pressed state, mesh, dofs, timings, the resonances seen: the local maxima
-   of the compliance |1/K| over the sweep) and the figures
+5. summary.json (pressed state, mesh, dofs, timings, the resonances seen: `resonances`) and
+   the figures
    impedance.png (Bode plot of Z) and receptor_transfer_<class>.png (amplitude over position
    and frequency).
 
@@ -255,12 +255,17 @@ def transfer_rows(frequency: float, values: dict | None, sites) -> list[dict]:
     return rows
 
 
-def resonances(rows: list[dict]) -> list[float]:
-    """The frequencies (Hz) where the compliance |1/K| has a local maximum over the sweep
-    (interior points only): the resonances the sweep resolves."""
+def resonances(rows: list[dict]) -> dict[str, list[float]]:
+    """The resonances the sweep resolves (interior local extrema of |K| over its frequencies,
+    Hz): "probe_held", maxima of |K| (poles of K: the fingertip's natural frequencies with the
+    probe's motion prescribed, the drive here, where the receptor transfers peak; |Z| maxima)
+    and "force_driven", maxima of the compliance |1/K| (zeros of K: the natural frequencies
+    under a force drive; |Z| minima). A sweep too coarse for a sharp peak misses it."""
     f = np.array([r["frequency_Hz"] for r in rows])
-    c = 1.0 / np.array([r["K_abs_N_per_mm2"] for r in rows])
-    return [float(f[i]) for i in range(1, len(f) - 1) if c[i] > c[i - 1] and c[i] > c[i + 1]]
+    a = np.array([r["K_abs_N_per_mm2"] for r in rows])
+    inner = range(1, len(f) - 1)
+    return {"probe_held": [float(f[i]) for i in inner if a[i] > max(a[i - 1], a[i + 1])],
+            "force_driven": [float(f[i]) for i in inner if a[i] < min(a[i - 1], a[i + 1])]}
 
 
 def _summary(scene, fm, dofs, pressed, solver, rows, options, comm, wall) -> dict:
