@@ -46,7 +46,14 @@ from mpi4py import MPI
 from ufl.algorithms import expand_derivatives
 
 from .errors import InputError
-from .harmonic import HarmonicOptions, HarmonicSolver, complex_modulus, linearise, press
+from .harmonic import (
+    HarmonicOptions,
+    HarmonicSolver,
+    complex_modulus,
+    linearise,
+    parse_frequencies,
+    press,
+)
 from .kinematics import principal_log_strains
 from .loading import RampHold, Vibration
 from .mesh import build_mesh
@@ -230,6 +237,23 @@ def run_frequency_response(scene: Scene, out: str | Path, *, frequencies=None,
         plot_impedance(rows, out / "impedance.png", scene.name)
         plot_receptor_transfer(site_rows, out, population, scene.name)
     return summary
+
+
+def small_signal_response(scene: Scene, frequencies, state: str = "held",
+                          comm: MPI.Comm = MPI.COMM_WORLD) -> tuple:
+    """(pressed state, [harmonic.Response per frequency]) of `scene`, nothing written: the
+    reference for a time-domain run of the same scene. For a drive d(t) = d0 + A sin(ωt) the
+    steady force is f(t) = f0 + |K(ω)| A sin(ωt + arg K(ω)) (`Response.stiffness`), valid while
+    A is small against the depth and the contact zone does not change. "held" matches a run
+    that vibrates from the end of the protocol's hold (its drift frozen there)."""
+    problem = FingertipProblem(build_mesh(scene.section, comm), scene.indenters, scene.history,
+                               scene.materials, scene.model)
+    pressed = press(problem, pressing_of(scene), state, scene.steps, scene.petsc_options)
+    solver = HarmonicSolver(linearise(problem))
+    try:
+        return pressed, solver.sweep(parse_frequencies(frequencies))
+    finally:
+        solver.close()
 
 
 def response_row(r) -> dict:
