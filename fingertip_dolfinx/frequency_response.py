@@ -76,7 +76,7 @@ class SiteTransfer:
     the module's docstring). Collective: every rank calls it; values on rank 0."""
 
     def __init__(self, problem, points: np.ndarray):
-        u, F, msh = problem.u, problem.F, problem.mesh
+        F, msh = problem.F, problem.mesh
         self.problem = problem
         self.du = fem.Function(problem.V)
         scalar = fem.functionspace(msh, ("Discontinuous Lagrange", 1))

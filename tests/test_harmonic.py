@@ -205,7 +205,7 @@ def test_site_transfer_at_two_hertz_is_the_instantaneous_change(pressed):
     exact derivatives, the pore pressure and the QLV split δσ = Dσ|_{S0} + (G* − g∞) F DS_e Fᵀ/J
     agree with the nonlinear model."""
     from fingertip_dolfinx.frequency_response import SiteTransfer
-    from fingertip_dolfinx.harmonic import TimeStepper, StepOptions, BACKWARD_EULER
+    from fingertip_dolfinx.harmonic import BACKWARD_EULER, StepOptions, TimeStepper
 
     problem, solver = pressed
     points = np.array([[0.0, problem.y_touch + 2.0], [0.3, problem.y_touch + 2.5]])

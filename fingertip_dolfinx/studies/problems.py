@@ -890,7 +890,6 @@ class VibratingLayer:
         base = mesh.locate_entities_boundary(self.msh, fdim, lambda x: np.isclose(x[1], 0.0))
         sides = mesh.locate_entities_boundary(
             self.msh, fdim, lambda x: np.isclose(x[0], 0.0) | np.isclose(x[0], self.W))
-        Vx, _ = V.sub(0).collapse()
         side_dofs = fem.locate_dofs_topological(V.sub(0), fdim, sides)
         return [fem.dirichletbc(np.zeros(2), fem.locate_dofs_topological(V, fdim, base), V),
                 fem.dirichletbc(0.0, side_dofs, V.sub(0))]
