@@ -512,7 +512,8 @@ def press(problem, pressing: RampHold, kind: str = "relaxed", steps: StepOptions
           on_step: Callable | None = None) -> PressedState:
     """Bring `problem` to its pressed state (see the module's docstring) and leave it there:
     "held" steps `pressing` (ramp and hold) to its end; "relaxed" steps its ramp, then holds the depth
-    with the `relaxation_steps`."""
+    with the `relaxation_steps`. The problem's `history` is replaced by the one it was pressed
+    with (the state then stays at its depth whatever `set_time` is given)."""
     if kind not in STATES:
         raise InputError("harmonic.state", f"unknown pressed state {kind!r}.",
                          f"use one of {STATES}.")
