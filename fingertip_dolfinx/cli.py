@@ -85,6 +85,14 @@ def _add_run(subparsers) -> None:
     p.add_argument("--fidelity-table", type=Path, metavar="CSV",
                    help="a fidelity.csv from `fingertip study fidelity` for this scene; without "
                    "it, --fidelity auto first runs the ladder on a coarse mesh in DIR/fidelity/")
+    p.add_argument("--frequencies", metavar="SPEC", default=None,
+                   help="the frequency route: the small-signal response about the pressed "
+                   "state at these frequencies (Hz): START:STOP:COUNT (log-spaced) or a comma "
+                   "list; writes frequency_response.csv, receptor_transfer.csv, summary.json "
+                   "and figures (also run when the scene has a [harmonic] table)")
+    p.add_argument("--state", choices=("held", "relaxed"), default=None,
+                   help="with the frequency route: the pressed state, held at the end of the "
+                   "pre-indentation (default) or relaxed to the long-term equilibrium")
     _add_scene_options(p)
     p.set_defaults(handler=_run_scene)
 
@@ -212,6 +220,8 @@ def _run_scene(args) -> int:
     else:
         mesh_tol = args.tol
     scene = load_scene(args.scene, overrides, spacing=args.spacing)
+    if args.frequencies is not None or args.state is not None or scene.harmonic is not None:
+        return _run_frequency_route(args, scene)
     if mesh_tol is None:
         mesh_tol = scene.accuracy.tol
     if mesh_tol is not None or args.max_levels is not None:
@@ -223,6 +233,26 @@ def _run_scene(args) -> int:
         f"{summary['peak_force_N_per_mm']:.4g} N/mm, max penetration "
         f"{1e3 * summary['max_penetration_mm']:.3g} µm; results in {args.out}"
     )
+    return 0
+
+
+def _run_frequency_route(args, scene) -> int:
+    """`run --frequencies`: the small-signal frequency response (frequency_response.py)."""
+    from .frequency_response import run_frequency_response
+
+    for flag, given in (("--resume", args.resume), ("--tol", args.tol is not None),
+                        ("--fidelity auto", args.fidelity == "auto")):
+        if given:
+            raise InputError(flag, "is not available on the frequency route.",
+                             f"drop {flag} (or --frequencies).")
+    summary = run_frequency_response(scene, args.out, frequencies=args.frequencies,
+                                     state=args.state, progress=not args.quiet)
+    peaks = ", ".join(f"{f:.3g}" for f in summary["resonances_Hz"]["probe_held"]) or "none"
+    _rank0_print(
+        f"{scene.name}: {summary['dofs']} dofs, {len(summary['harmonic']['frequencies_Hz'])} "
+        f"frequencies in {summary['wall_time_s']:.1f} s (pressed state "
+        f"{summary['pressed_state']['wall_time_s']:.1f} s); resonances seen (|K| maxima, "
+        f"probe held): {peaks} Hz; results in {args.out}")
     return 0
 
 

@@ -94,39 +94,26 @@ class DerivedFields:
             f.x.scatter_forward()
 
 
-class CauchyStress:
-    """The Cauchy stress σ = P Fᵀ / J of each region's own law as a DG1 tensor (MPa), at an
-    accepted state (after `problem.accept()`: where a run's `on_step` is).
+class QuadratureProjection:
+    """2×2 tensor expressions, one per set of cells, evaluated at the quadrature points of
+    degree `quadrature_degree` (where a QLV history lives) and projected onto a DG1 tensor
+    function cell by cell (least squares with the rule's weights: the local L2 projection on
+    affine cells). `update()` re-evaluates them."""
 
-    `laws` maps a cell-tag value to that region's law (model.py; `.stress` is P). A law with a
-    history (the skin's QLV) is evaluated with its stored internal variables, P = F (g∞ S_e +
-    Σ g_i h_i): its own `.stress` would advance them once more. σ is evaluated at the quadrature
-    points of the stress integral (`quadrature_degree`, where the QLV history lives) and
-    projected onto P1 cell by cell (least squares with the rule's weights: the local L2
-    projection on affine cells). The pore pressure is not part of any law: the total stress of
-    the subcutaneous tissue is σ − p I.
-    """
-
-    def __init__(self, u: fem.Function, cell_tags: dmesh.MeshTags, laws: dict[int, object],
-                 quadrature_degree: int):
+    def __init__(self, msh, plan: list[tuple[np.ndarray, ufl.core.expr.Expr]],
+                 quadrature_degree: int, name: str):
         import basix
 
-        msh = u.function_space.mesh
         self.mesh = msh
         space = fem.functionspace(msh, ("Discontinuous Lagrange", 1, (2, 2)))
-        self.stress = fem.Function(space, name="cauchy_stress")
+        self.stress = fem.Function(space, name=name)
         points, weights = basix.make_quadrature(msh.basix_cell(), quadrature_degree)
         p1 = basix.create_element(basix.ElementFamily.P, msh.basix_cell(), 1,
                                   discontinuous=True)
         phi = p1.tabulate(0, points)[0, :, :, 0]  # (points, dofs), the dofs in DG1's order
         wphi = weights[:, None] * phi
         self._fit = np.linalg.solve(phi.T @ wphi, wphi.T)  # (dofs, points)
-        F = ufl.Identity(2) + ufl.grad(u)
-        self._plan = []
-        for tag, law in laws.items():
-            cells = cell_tags.find(tag)
-            sigma = accepted_stress(law, F) * F.T / ufl.det(F)
-            self._plan.append((cells, fem.Expression(sigma, points)))
+        self._plan = [(cells, fem.Expression(expr, points)) for cells, expr in plan]
 
     def update(self) -> None:
         values = self.stress.x.array.reshape(-1, 4)
@@ -137,6 +124,26 @@ class CauchyStress:
                 at_points = expr.eval(self.mesh, cells).reshape(len(cells), n, 4)
                 values[dofmap[cells]] = np.einsum("dq,cqk->cdk", self._fit, at_points)
         self.stress.x.scatter_forward()
+
+
+class CauchyStress(QuadratureProjection):
+    """The Cauchy stress σ = P Fᵀ / J of each region's own law as a DG1 tensor (MPa), at an
+    accepted state (after `problem.accept()`: where a run's `on_step` is).
+
+    `laws` maps a cell-tag value to that region's law (model.py; `.stress` is P). A law with a
+    history (the skin's QLV) is evaluated with its stored internal variables, P = F (g∞ S_e +
+    Σ g_i h_i): its own `.stress` would advance them once more. σ is evaluated at the quadrature
+    points of the stress integral (`quadrature_degree`, where the QLV history lives) and
+    projected onto P1 cell by cell (`QuadratureProjection`). The pore pressure is not part of
+    any law: the total stress of the subcutaneous tissue is σ − p I.
+    """
+
+    def __init__(self, u: fem.Function, cell_tags: dmesh.MeshTags, laws: dict[int, object],
+                 quadrature_degree: int):
+        F = ufl.Identity(2) + ufl.grad(u)
+        plan = [(cell_tags.find(tag), accepted_stress(law, F) * F.T / ufl.det(F))
+                for tag, law in laws.items()]
+        super().__init__(u.function_space.mesh, plan, quadrature_degree, "cauchy_stress")
 
 
 def accepted_stress(law, F) -> ufl.core.expr.Expr:

@@ -111,6 +111,8 @@ class FingertipProblem:
         v = ufl.TestFunction(self.V)
         R_u = self._region_stresses(v)
         coupling, residuals_p = self._pressure(v, cells["subcutaneous"])
+        #: The pore pressure's term in the momentum balance (None without a pore law).
+        self.pressure_coupling = coupling
         if coupling is not None:
             R_u += coupling
         R_u += self._contact(v)

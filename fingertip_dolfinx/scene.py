@@ -18,6 +18,7 @@ from pathlib import Path
 from .datafiles import builtin_dir, find, read_toml
 from .errors import InputError
 from .geometry import Section, load_section
+from .harmonic import HarmonicOptions
 from .indenters import Indenter, load_indenter, make_indenter
 from .loading import KINDS, LoadHistory, history_from_dict
 from .model import ModelOptions
@@ -28,7 +29,7 @@ from .validation import check_keys, positive
 #: The built-in scenes (inside the package: `fingertip_dolfinx/data/scenes/`).
 SCENES_DIR = builtin_dir("scenes")
 TABLES = ("name", "description", "section", "spacing", "indenters", "materials", "protocol",
-          "model", "steps", "solver", "output", "accuracy")
+          "model", "steps", "solver", "output", "accuracy", "harmonic")
 
 
 @dataclass(frozen=True)
@@ -109,6 +110,9 @@ class Scene:
     name: str = "scene"
     description: str = ""
     accuracy: Accuracy = field(default_factory=Accuracy)  # last: positional calls unchanged
+    #: `[harmonic]`: the small-signal frequency response about the pressed state
+    #: (harmonic.py); None: the scene has no such table.
+    harmonic: HarmonicOptions | None = None
 
     def __post_init__(self):
         self.indenters = list(self.indenters)
@@ -258,6 +262,8 @@ def scene_from_dict(data: dict, where: str = "scene") -> Scene:
         petsc_options=dict(data.get("solver", {})),
         outputs=_options(Outputs, data.get("output", {}), f"{where}: output"),
         accuracy=_options(Accuracy, data.get("accuracy", {}), f"{where}: accuracy"),
+        harmonic=(_options(HarmonicOptions, data["harmonic"], f"{where}: harmonic")
+                  if "harmonic" in data else None),
     )
 
 
@@ -328,7 +334,7 @@ def scene_record(scene: Scene) -> dict:
         "solver": scene.petsc_options,
         "output": dataclasses.asdict(scene.outputs),
         "accuracy": dataclasses.asdict(scene.accuracy),
-    })
+    } | ({} if scene.harmonic is None else {"harmonic": dataclasses.asdict(scene.harmonic)}))
 
 
 def _plain(value):

@@ -1,0 +1,375 @@
+r"""The frequency route of a scene: pressed state, then the small-signal response per frequency
+(harmonic.py), written as tables, a summary and figures.
+
+`run_frequency_response(scene, out, frequencies, state)`:
+
+1. the pressed state: the protocol's pre-indentation (`loading.Vibration.pressing`, or a
+   `RampHold` protocol itself), "held" at its end or "relaxed" (harmonic.press);
+2. the linearisation and one LU per frequency (harmonic.HarmonicSolver);
+3. per frequency a row of frequency_response.csv: the dynamic stiffness K(ω) = δf/δd (N/mm per
+   mm) and the driving-point impedance Z(ω) = δf/(iω δd) (N·s/mm per mm), magnitude and phase
+   (degrees; a phase > 0: the force leads the drive);
+4. per frequency and receptor site a row of receptor_transfer.csv: the transfer functions from
+   the drive to the stimulus quantities of `receptors.QUANTITIES` (sed, compressive_strain =
+   −e_min, compressive_stress = −σ22 total), amplitude per µm of drive and phase (degrees), at
+   the sites of the scene's `[output] receptors` set ("default" if none);
+5. summary.json (pressed state, mesh, dofs, timings, the resonances seen: `resonances`) and
+   the figures
+   impedance.png (Bode plot of Z) and receptor_transfer_<class>.png (amplitude over position
+   and frequency).
+
+**Transfer functions** (`SiteTransfer`). Each quantity q is a nonlinear function of the state;
+its small-signal change is the directional derivative δq = Dq[δu] (and −δp for the total
+stress), computed exactly with `ufl.derivative` at the pressed state, applied to δu_r and δu_i
+separately (q is real: δq = Dq[δu_r] + i Dq[δu_i]). Exact derivatives need no step ε (central
+differences q(u0 ± ε δu) would trade an O(ε²) truncation against round-off in the small
+difference of large values; sed is quadratic in the strain, small at small depth). The stress
+of a QLV law is P Fᵀ/J with P = F S: δσ = Dσ[δu]|_{S0 frozen history} + (G*(ω) − g∞) F DS_e[δu]
+Fᵀ/J, since δS = G* DS_e[δu] while the frozen-history derivative carries g∞ DS_e. The fields are
+brought to the sites as the receptor recorder's are: sed and e_min interpolated into DG1, the
+stress projected from the quadrature points into DG1 (post.QuadratureProjection), then
+sampled (post.PointSampler).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time as wallclock
+from pathlib import Path
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from matplotlib.figure import Figure
+from mpi4py import MPI
+from ufl.algorithms import expand_derivatives
+
+from .errors import InputError
+from .harmonic import (
+    HarmonicOptions,
+    HarmonicSolver,
+    complex_modulus,
+    linearise,
+    parse_frequencies,
+    press,
+)
+from .kinematics import principal_log_strains
+from .loading import RampHold, Vibration
+from .mesh import build_mesh
+from .outputs import CsvLog, prepare_directory, write_json
+from .post import PointSampler, QuadratureProjection, accepted_stress
+from .problem import FingertipProblem
+from .receptors import CLASSES, QUANTITIES, load_receptors
+from .scene import Scene, scene_record
+
+RESPONSE_COLUMNS = ("frequency_Hz", "K_abs_N_per_mm2", "K_phase_deg", "Z_abs_Ns_per_mm2",
+                    "Z_phase_deg", "K_real", "K_imag", "solve_s")
+TRANSFER_COLUMNS = ("frequency_Hz", "class", "index", "x_mm", "depth_mm", *(
+    f"{q}_{part}" for q in QUANTITIES for part in ("abs_per_um", "phase_deg")))
+#: Drive unit of the transfer tables: per µm of indenter motion.
+PER_UM = 1e-3
+
+
+class SiteTransfer:
+    """The transfer functions from the drive to the stimulus quantities at fixed points (see
+    the module's docstring). Collective: every rank calls it; values on rank 0."""
+
+    def __init__(self, problem, points: np.ndarray):
+        F, msh = problem.F, problem.mesh
+        self.problem = problem
+        self.du = fem.Function(problem.V)
+        scalar = fem.functionspace(msh, ("Discontinuous Lagrange", 1))
+        ipoints = scalar.element.interpolation_points
+        self.sed, self.e_min = fem.Function(scalar), fem.Function(scalar)
+        self._scalars, stress, material, self.prony = [], [], [], None
+        for name, law in problem.laws.regions.items():
+            cells = problem.fmesh.cell_tags.find(problem.tags[name])
+            if not law.rigid:
+                self._scalars.append((self.sed, cells, fem.Expression(
+                    self._d(law.energy), ipoints)))
+            sigma = accepted_stress(law, F) * F.T / ufl.det(F)
+            stress.append((cells, self._d(sigma)))
+            if law.history is not None:
+                material.append((cells, F * self._d(law.history.S_e) * F.T / ufl.det(F)))
+                self.prony = law.history.prony
+        every = np.arange(msh.topology.index_map(2).size_local
+                          + msh.topology.index_map(2).num_ghosts, dtype=np.int32)
+        self._scalars.append((self.e_min, every, fem.Expression(
+            self._d(principal_log_strains(F)[1]), ipoints)))
+        degree = problem.options.quadrature_degree
+        self.stress = QuadratureProjection(msh, stress, degree, "d_sigma")
+        self.material = (QuadratureProjection(msh, material, degree, "d_sigma_material")
+                         if material else None)
+        self.sampler = PointSampler(msh, points)
+        self._pressure_sampling(problem, points)
+
+    def _d(self, expr):
+        """Dq[δu] as UFL, δu the Function `du`."""
+        return expand_derivatives(ufl.derivative(expr, self.problem.u, self.du))
+
+    def _pressure_sampling(self, problem, points) -> None:
+        self.dp, self.pressure, self.in_tissue = None, None, None
+        if problem.p is None:
+            return
+        self.dp = fem.Function(problem.p.function_space)
+        tags = problem.fmesh.cell_tags
+        region = fem.Function(fem.functionspace(problem.mesh, ("DG", 0)))
+        region.x.array[tags.indices] = tags.values
+        inside = self.sampler(region)
+        self.in_tissue = (None if inside is None
+                          else np.isclose(inside[:, 0], problem.tags["subcutaneous"]))
+        self.pressure = PointSampler(problem.submesh, points)
+
+    def _real_part(self, arrays: list[np.ndarray]) -> dict[str, np.ndarray] | None:
+        """Dq[δ] at the points for one real direction δ = (δu, δp)."""
+        self.du.x.array[:] = arrays[0]
+        for f, cells, expr in self._scalars:
+            f.interpolate(expr, cells0=cells)
+        for f in (self.sed, self.e_min):
+            f.x.scatter_forward()
+        self.stress.update()
+        values = {"sed": self.sampler(self.sed), "e_min": self.sampler(self.e_min),
+                  "sigma22": self.sampler(self.stress.stress)}
+        if self.material is not None:
+            self.material.update()
+            values["material22"] = self.sampler(self.material.stress)
+        if self.dp is not None:
+            self.dp.x.array[:] = arrays[1]
+            values["p"] = self.pressure(self.dp)
+        if self.problem.mesh.comm.rank != 0:
+            return None
+        out = {"sed": values["sed"][:, 0], "e_min": values["e_min"][:, 0],
+               "sigma22": values["sigma22"][:, 3]}
+        out["material22"] = (values["material22"][:, 3] if "material22" in values
+                             else np.zeros_like(out["sed"]))
+        out["p"] = (np.where(self.in_tissue, values["p"][:, 0], 0.0) if "p" in values
+                    else np.zeros_like(out["sed"]))
+        return out
+
+    def __call__(self, response) -> dict[str, np.ndarray] | None:
+        """{quantity: complex values per mm of drive, compression > 0} on rank 0 (None
+        elsewhere), the quantities of receptors.QUANTITIES."""
+        r, i = self._real_part(response.x_r), self._real_part(response.x_i)
+        if r is None:
+            return None
+        c = {k: r[k] + 1j * i[k] for k in r}
+        extra = complex_modulus(self.prony, response.omega) - (
+            self.prony.g_inf if self.prony is not None else 1.0)
+        sigma22 = c["sigma22"] + extra * c["material22"] - c["p"]
+        values = {"sed": c["sed"], "compressive_strain": c["e_min"],
+                  "compressive_stress": sigma22}
+        return {q: QUANTITIES[q][1] * values[q] for q in QUANTITIES}
+
+
+# --- the run --------------------------------------------------------------------------------
+
+
+def pressing_of(scene: Scene) -> RampHold:
+    """The pre-indentation of the scene's protocol: a Vibration's `pressing`, or a RampHold."""
+    history = scene.history
+    if isinstance(history, Vibration):
+        return history.pressing
+    if isinstance(history, RampHold):
+        return history
+    raise InputError(f"{scene.name}: protocol", "the frequency response needs a pressed state: "
+                     f"a {type(history).__name__} protocol has none.",
+                     'use kind = "vibration" (or "ramp-hold").')
+
+
+def frequencies_of(scene: Scene, options: HarmonicOptions) -> tuple[float, ...]:
+    if options.frequencies:
+        return options.frequencies
+    if isinstance(scene.history, Vibration):
+        return scene.history.frequencies
+    raise InputError(f"{scene.name}: harmonic.frequencies", "none given.",
+                     'give --frequencies 1:1000:40 or [harmonic] frequencies = "1:1000:40".')
+
+
+def run_frequency_response(scene: Scene, out: str | Path, *, frequencies=None,
+                           state: str | None = None, progress: bool = True,
+                           comm: MPI.Comm = MPI.COMM_WORLD) -> dict:
+    """The frequency route of `scene` into `out` (see the module's docstring); returns the
+    summary. `frequencies` (a harmonic.parse_frequencies spec) and `state` override the
+    scene's `[harmonic]` table."""
+    options = scene.harmonic or HarmonicOptions()
+    if frequencies is not None:
+        options = dataclasses.replace(options, frequencies=frequencies)
+    if state is not None:
+        options = dataclasses.replace(options, state=state)
+    freqs = frequencies_of(scene, options)
+    pressing = pressing_of(scene)
+    population = load_receptors(scene.outputs.receptors or "default")
+    out = prepare_directory(Path(out), comm)
+    started = wallclock.perf_counter()
+    fm = build_mesh(scene.section, comm)
+    problem = FingertipProblem(fm, scene.indenters, scene.history, scene.materials, scene.model)
+    dofs = sum(f.function_space.dofmap.index_map.size_global
+               * f.function_space.dofmap.index_map_bs for f in problem.unknowns)
+    show = _printer(progress, comm)
+    show(f"{scene.name}: {dofs} dofs; pressing to {pressing.depth:g} mm ({options.state})")
+    pressed = press(problem, pressing, options.state, scene.steps, scene.petsc_options)
+    show(f"pressed: {pressed.force:.4g} N/mm after {pressed.steps} steps "
+         f"({pressed.wall_time_s:.1f} s)")
+    solver = HarmonicSolver(linearise(problem))
+    sites = population.sites(scene.section.outer)
+    transfer = SiteTransfer(problem, sites.points)
+    response_log = CsvLog(out / "frequency_response.csv", RESPONSE_COLUMNS, comm)
+    transfer_log = CsvLog(out / "receptor_transfer.csv", TRANSFER_COLUMNS, comm)
+    rows, site_rows = [], []
+    try:
+        for k, f in enumerate(freqs):
+            r = solver.solve(f)
+            rows.append(response_row(r))
+            response_log.write([rows[-1]])
+            site_rows += transfer_rows(f, transfer(r), sites)
+            transfer_log.write(site_rows[len(site_rows) - len(sites):] if comm.rank == 0 else [])
+            show(f"[{k + 1}/{len(freqs)}] {f:.4g} Hz: |Z| = {abs(r.impedance):.4g} N·s/mm², "
+                 f"phase {math.degrees(np.angle(r.impedance)):.1f}° ({r.wall_time_s:.2f} s)")
+    finally:
+        response_log.close()
+        transfer_log.close()
+        solver.close()
+    summary = _summary(scene, fm, dofs, pressed, solver, rows, options, comm,
+                       wallclock.perf_counter() - started)
+    write_json(out / "summary.json", summary, comm)
+    if comm.rank == 0 and scene.outputs.pictures:
+        plot_impedance(rows, out / "impedance.png", scene.name)
+        plot_receptor_transfer(site_rows, out, population, scene.name)
+    return summary
+
+
+def small_signal_response(scene: Scene, frequencies, state: str = "held",
+                          comm: MPI.Comm = MPI.COMM_WORLD) -> tuple:
+    """(pressed state, [harmonic.Response per frequency]) of `scene`, nothing written: the
+    reference for a time-domain run of the same scene. For a drive d(t) = d0 + A sin(ωt) the
+    steady force is f(t) = f0 + |K(ω)| A sin(ωt + arg K(ω)) (`Response.stiffness`), valid while
+    A is small against the depth and the contact zone does not change. "held" matches a run
+    that vibrates from the end of the protocol's hold (its drift frozen there)."""
+    problem = FingertipProblem(build_mesh(scene.section, comm), scene.indenters, scene.history,
+                               scene.materials, scene.model)
+    pressed = press(problem, pressing_of(scene), state, scene.steps, scene.petsc_options)
+    solver = HarmonicSolver(linearise(problem))
+    try:
+        return pressed, solver.sweep(parse_frequencies(frequencies))
+    finally:
+        solver.close()
+
+
+def response_row(r) -> dict:
+    K, Z = r.stiffness, r.impedance
+    return {"frequency_Hz": r.frequency, "K_abs_N_per_mm2": abs(K),
+            "K_phase_deg": math.degrees(np.angle(K)), "Z_abs_Ns_per_mm2": abs(Z),
+            "Z_phase_deg": math.degrees(np.angle(Z)), "K_real": K.real, "K_imag": K.imag,
+            "solve_s": r.wall_time_s}
+
+
+def transfer_rows(frequency: float, values: dict | None, sites) -> list[dict]:
+    """One row per site (rank 0; empty elsewhere): amplitude per µm of drive and phase."""
+    if values is None:
+        return []
+    rows = []
+    for i in range(len(sites)):
+        row = {"frequency_Hz": frequency, "class": sites.cls[i], "index": int(sites.index[i]),
+               "x_mm": sites.x[i], "depth_mm": sites.depth[i]}
+        for q, v in values.items():
+            row[f"{q}_abs_per_um"] = abs(v[i]) * PER_UM
+            row[f"{q}_phase_deg"] = math.degrees(np.angle(v[i]))
+        rows.append(row)
+    return rows
+
+
+def resonances(rows: list[dict]) -> dict[str, list[float]]:
+    """The resonances the sweep resolves (interior local extrema of |K| over its frequencies,
+    Hz): "probe_held", maxima of |K| (poles of K: the fingertip's natural frequencies with the
+    probe's motion prescribed, the drive here, where the receptor transfers peak; |Z| maxima)
+    and "force_driven", maxima of the compliance |1/K| (zeros of K: the natural frequencies
+    under a force drive; |Z| minima). A sweep too coarse for a sharp peak misses it."""
+    f = np.array([r["frequency_Hz"] for r in rows])
+    a = np.array([r["K_abs_N_per_mm2"] for r in rows])
+    inner = range(1, len(f) - 1)
+    return {"probe_held": [float(f[i]) for i in inner if a[i] > max(a[i - 1], a[i + 1])],
+            "force_driven": [float(f[i]) for i in inner if a[i] < min(a[i - 1], a[i + 1])]}
+
+
+def _summary(scene, fm, dofs, pressed, solver, rows, options, comm, wall) -> dict:
+    solves = [r["solve_s"] for r in rows]
+    return {
+        "scene": scene_record(scene),
+        "harmonic": {"state": options.state, "frequencies_Hz": [r["frequency_Hz"] for r in rows]},
+        "pressed_state": pressed.record(),
+        "mesh": _mesh_record(fm.report),
+        "dofs": dofs,
+        "ranks": comm.size,
+        "assembly_s": solver.assembly_time_s,
+        "solve_s_total": float(np.sum(solves)),
+        "solve_s_mean": float(np.mean(solves)) if solves else math.nan,
+        "wall_time_s": wall,
+        "resonances_Hz": resonances(rows),
+    }
+
+
+def _mesh_record(r) -> dict | None:
+    if r is None:
+        return None
+    return {"cells": r.num_cells, "cell_type": r.cell_type, "min_edge_mm": r.min_edge,
+            "max_edge_mm": r.max_edge, "min_quality": r.min_quality}
+
+
+def _printer(progress: bool, comm):
+    def show(text: str) -> None:
+        if progress and comm.rank == 0:
+            print(text, flush=True)
+    return show
+
+
+# --- figures ----------------------------------------------------------------------------------
+
+
+def plot_impedance(rows: list[dict], path: Path, title: str = "") -> Path:
+    """Bode plot of the driving-point impedance Z(ω): |Z| and its phase over f, log axes."""
+    f = np.array([r["frequency_Hz"] for r in rows])
+    fig = Figure(figsize=(6.4, 6.0))
+    top, bottom = fig.subplots(2, 1, sharex=True)
+    top.loglog(f, [r["Z_abs_Ns_per_mm2"] for r in rows], "o-", ms=3)
+    top.set_ylabel("|Z| (N·s/mm per mm)")
+    top.set_title(f"{title}: driving-point impedance")
+    bottom.semilogx(f, [r["Z_phase_deg"] for r in rows], "o-", ms=3)
+    bottom.set_ylabel("phase of Z (°)")
+    bottom.set_xlabel("frequency (Hz)")
+    for ax in (top, bottom):
+        ax.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    return path
+
+
+def plot_receptor_transfer(rows: list[dict], out: Path, population,
+                           title: str = "") -> list[Path]:
+    """Per receptor class: the amplitude of the stimulus quantity its model reads, per µm of
+    drive, over the sites' position x and the frequency (log colour scale). `rows`: those of
+    receptor_transfer.csv."""
+    data = {k: np.array([r[k] for r in rows]) for k in TRANSFER_COLUMNS}
+    paths = []
+    for cls in CLASSES:
+        mine = data["class"] == cls
+        if not np.any(mine):
+            continue
+        x, f = np.unique(data["x_mm"][mine]), np.unique(data["frequency_Hz"][mine])
+        fig = Figure(figsize=(6.4, 4.8))
+        ax = fig.subplots()
+        quantity = population[cls].quantity
+        z = np.full((len(f), len(x)), np.nan)
+        fi = np.searchsorted(f, data["frequency_Hz"][mine])
+        xi = np.searchsorted(x, data["x_mm"][mine])
+        z[fi, xi] = data[f"{quantity}_abs_per_um"][mine]
+        mesh = ax.pcolormesh(x, f, np.log10(np.abs(z) + 1e-300), shading="nearest")
+        ax.set_yscale("log")
+        ax.set_xlabel("x of the site (mm)")
+        ax.set_ylabel("frequency (Hz)")
+        ax.set_title(f"{title}: {cls}, {quantity} per µm of drive")
+        fig.colorbar(mesh, ax=ax, label=f"log10 amplitude ({QUANTITIES[quantity][2]}/µm)")
+        fig.tight_layout()
+        paths.append(out / f"receptor_transfer_{cls}.png")
+        fig.savefig(paths[-1], dpi=120)
+    return paths

@@ -1,0 +1,257 @@
+"""The frequency-domain route (harmonic.py) against exact answers and its own limits.
+
+- The vibrating layer (studies.problems.VibratingLayer): a QLV hyperfoam layer on a rigid
+  base, laterally confined, shaken at its top: the standing wave M* k cot(kH) in closed form.
+  Over 1–1000 Hz (through its first resonances, with G* varying: a Prony series with fast
+  terms, a test value) the computed dynamic stiffness matches to 1 % in amplitude and phase,
+  and its error falls as h⁴ (P2: the nodal superconvergence of 1D Galerkin, h^{2p}).
+- The fingertip (coarse 1pt mesh, the paper's materials, pressed 1 mm and relaxed): the drive
+  vector is −∂R/∂d (a finite difference of the residual in the indenter's position); at
+  ω → 0 Re K(ω) is the long-term tangent of two fully relaxed equilibria; at 2 Hz (ωτ_i ≫ 1,
+  far below the tissue's resonances) it is the instantaneous tangent of a vanishing step.
+"""
+
+import math
+
+import dolfinx.fem.petsc as fpetsc
+import numpy as np
+import pytest
+from dolfinx import fem
+from petsc4py import PETSc
+
+from fingertip_dolfinx.errors import InputError
+from fingertip_dolfinx.harmonic import (
+    HarmonicSolver,
+    complex_modulus,
+    linearise,
+    press,
+    relaxation_steps,
+    step_force,
+)
+from fingertip_dolfinx.loading import RampHold
+from fingertip_dolfinx.materials import Prony
+from fingertip_dolfinx.mesh import build_mesh
+from fingertip_dolfinx.problem import FingertipProblem
+from fingertip_dolfinx.scene import load_scene
+from fingertip_dolfinx.studies.problems import VibratingLayer
+from fingertip_dolfinx.tissues import WU2004
+
+COARSE = ["section.mesh.min_size=0.2", "section.mesh.max_size=1.0", "section.mesh.bone_size=2.0"]
+#: Test value, not tissue data: fast Prony terms make G* vary over 1–1000 Hz.
+FAST_PRONY = Prony((0.3, 0.2), (4e-3, 0.07))
+DENSITY = 1.0e-9  # 1000 kg/m³
+FREQUENCIES = np.geomspace(1.0, 1000.0, 25)
+
+
+def test_complex_modulus_limits_and_causality():
+    """G*(0) = g∞ (relaxed), G*(∞) = 1 (instantaneous), Im G* > 0 (dissipation) between."""
+    p = FAST_PRONY
+    assert complex_modulus(p, 0.0) == pytest.approx(p.g_inf, abs=1e-15)
+    assert complex_modulus(p, 1e12) == pytest.approx(1.0, abs=1e-9)
+    assert all(complex_modulus(p, w).imag > 0 for w in (1.0, 100.0, 1e4))
+
+
+def _layer_errors(cells: int, frequencies) -> np.ndarray:
+    layer = VibratingLayer(WU2004.skin, FAST_PRONY, DENSITY, cells=cells)
+    solver = HarmonicSolver(layer.linearisation())
+    try:
+        return np.array([abs(1 / solver.solve(f).force / layer.exact_stiffness(f) - 1)
+                         for f in frequencies])
+    finally:
+        solver.close()
+
+
+def test_layer_matches_the_standing_wave():
+    """|K_h/K − 1| < 1 % over 1–1000 Hz (bounds the amplitude's relative error and the phase's
+    error in radians) on 40 P2 cells (8 per wavelength at 1000 Hz)."""
+    errors = _layer_errors(40, FREQUENCIES)
+    assert errors.max() < 1e-2, dict(zip(FREQUENCIES.round(1), errors))
+
+
+def test_layer_profile_is_the_standing_wave():
+    """The displacement along the column: sin(k y)/sin(k H), at 300 Hz (past the first
+    resonance) to 1 % of the top's amplitude."""
+    layer = VibratingLayer(WU2004.skin, FAST_PRONY, DENSITY, cells=40)
+    solver = HarmonicSolver(layer.linearisation())
+    response = solver.solve(300.0)
+    solver.close()
+    y = layer.V.tabulate_dof_coordinates()[:, 1]
+    uy = response.displacement().reshape(-1, 2)[:, 1] / response.force  # per unit top motion
+    exact = layer.exact_profile(y, 300.0)
+    assert np.abs(uy - exact).max() < 1e-2
+
+
+def test_layer_error_falls_at_the_p2_rate():
+    """Halving h divides the error at 1000 Hz by ~16 (h^{2p}, p = 2; measured 16.1 and 16.0
+    for 10 -> 20 -> 40 cells); assert at least P2's L2 rate h³."""
+    errors = [_layer_errors(n, [1000.0])[0] for n in (10, 20, 40)]
+    rates = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
+    assert np.all(rates > 3.0), (errors, rates)
+
+
+# --- the fingertip ----------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def pressed():
+    """The coarse 1pt fingertip pressed 1 mm in 1 s and relaxed; its harmonic solver."""
+    scene = load_scene("1pt", COARSE)
+    problem = FingertipProblem(build_mesh(scene.section), scene.indenters, scene.history,
+                               scene.materials, scene.model)
+    press(problem, RampHold(1.0, 1.0, 1.0), "relaxed", scene.steps)
+    solver = HarmonicSolver(linearise(problem))
+    yield problem, solver
+    solver.close()
+
+
+def _residual(problem, depth: float) -> np.ndarray:
+    for obstacle in problem.obstacles:
+        obstacle.y_tip.value = problem.y_touch + depth
+    form = fem.form(problem.residuals[0], entity_maps=problem.entity_maps)
+    vec = fpetsc.assemble_vector(form)
+    vec.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    values = vec.array_r.copy()
+    vec.destroy()
+    return values
+
+
+@pytest.mark.mpi
+def test_drive_is_minus_the_residuals_derivative_in_the_depth(pressed):
+    """b = K_contact e_y (shift invariance) equals −∂R/∂d by central differences (ε = 1e-6 mm:
+    truncation ~ε², round-off ~1e-16/ε of the residual's entries)."""
+    problem, solver = pressed
+    eps, depth = 1e-6, problem.indentation(problem.time)
+    dR = (_residual(problem, depth + eps) - _residual(problem, depth - eps)) / (2 * eps)
+    problem.set_time(problem.time)
+    n = len(dR)  # this rank's owned displacement entries (the blocked vector's first part)
+    b = solver.b.array_r[:n]
+    free = np.ones(n, dtype=bool)
+    clamped = problem.clamped_dofs[problem.clamped_dofs < n // 2]
+    free[(clamped[:, None] * 2 + np.arange(2)).ravel()] = False
+    comm = problem.mesh.comm
+    norm_b = math.sqrt(comm.allreduce(float(b @ b)))
+    error = math.sqrt(comm.allreduce(float(np.sum((b + dR)[free] ** 2))))
+    assert norm_b > 0
+    assert error < 1e-6 * norm_b
+
+
+@pytest.mark.mpi
+def test_zero_frequency_stiffness_is_the_long_term_tangent(pressed):
+    """Re K(ω → 0) = (F(d + δ) − F(d − δ))/2δ of fully relaxed equilibria, to 1 % (measured
+    1e-9). f = 1e-12 Hz: ω is far below the drainage rate (consolidation over the section
+    ~7e7 s with the paper's k0 = 1e-3 mm⁴/(N s))."""
+    problem, solver = pressed
+    depth, delta = problem.indentation(problem.time), 1e-4
+    steps = relaxation_steps(problem)
+    tangent = (step_force(problem, depth + delta, steps)
+               - step_force(problem, depth - delta, steps)) / (2 * delta)
+    K = solver.solve(1e-12).stiffness
+    assert K.real == pytest.approx(tangent, rel=1e-2)
+
+
+@pytest.mark.mpi
+def test_two_hertz_stiffness_is_the_instantaneous_tangent(pressed):
+    """At 2 Hz (ωτ_i = 27 and 118 for the paper's τ = 2.1, 9.4 s; far above the drainage rate
+    and below the first resonance) Re K = the tangent of one backward-Euler step of 1e-9 s
+    (unrelaxed, undrained) to d ± δ, to 1 % (measured 0.1 %: G*(2 Hz) = 1 − 4e-4 − ...)."""
+    problem, solver = pressed
+    depth, delta = problem.indentation(problem.time), 1e-4
+    tangent = (step_force(problem, depth + delta, [1e-9])
+               - step_force(problem, depth - delta, [1e-9])) / (2 * delta)
+    K = solver.solve(2.0).stiffness
+    assert K.real == pytest.approx(tangent, rel=1e-2)
+    assert K.imag > 0  # the skin's QLV dissipates: the force leads the drive
+
+
+def test_impedance_is_the_stiffness_over_i_omega(pressed):
+    _, solver = pressed
+    r = solver.solve(10.0)
+    assert r.impedance == pytest.approx(r.stiffness / (2j * math.pi * 10.0), rel=1e-14)
+
+
+def test_bad_state_and_frequency_are_named(pressed):
+    problem, solver = pressed
+    with pytest.raises(InputError, match="harmonic.state"):
+        press(problem, RampHold(1.0, 1.0, 1.0), "frozen")
+    with pytest.raises(InputError, match="harmonic.frequencies"):
+        solver.solve(-1.0)
+
+
+# --- the frequency route of a scene -------------------------------------------------------------
+
+
+def _sampled_quantities(problem, points) -> dict[str, np.ndarray]:
+    """sed, −e_min and −σ22 total at `points` at the current (accepted) state, as the receptor
+    recorder samples them."""
+    from fingertip_dolfinx.post import CauchyStress, DerivedFields, PointSampler
+
+    derived = DerivedFields(problem.u, problem.fmesh.cell_tags, problem.region_energies())
+    derived.update()
+    laws = {problem.tags[n]: law for n, law in problem.laws.regions.items()}
+    stress = CauchyStress(problem.u, problem.fmesh.cell_tags, laws,
+                          problem.options.quadrature_degree)
+    stress.update()
+    sample = PointSampler(problem.mesh, points)
+    p = PointSampler(problem.submesh, points)(problem.p)[:, 0]
+    return {"sed": sample(derived.sed)[:, 0],
+            "compressive_strain": -sample(derived.principal)[:, 1],
+            "compressive_stress": -(sample(stress.stress)[:, 3] - p)}
+
+
+def test_site_transfer_at_two_hertz_is_the_instantaneous_change(pressed):
+    """Serial (the samples are gathered on rank 0). The transfer functions to the stimulus quantities at points in the subcutaneous tissue
+    under the bar (where sed, −e_min and −σ22 − p all respond): Re of the 2 Hz transfer equals
+    the central difference of the quantities over one vanishing step to d ± δ, to 1 %: the
+    exact derivatives, the pore pressure and the QLV split δσ = Dσ|_{S0} + (G* − g∞) F DS_e Fᵀ/J
+    agree with the nonlinear model."""
+    from fingertip_dolfinx.frequency_response import SiteTransfer
+    from fingertip_dolfinx.harmonic import BACKWARD_EULER, StepOptions, TimeStepper
+
+    problem, solver = pressed
+    points = np.array([[0.0, problem.y_touch + 2.0], [0.3, problem.y_touch + 2.5]])
+    transfer = SiteTransfer(problem, points)(solver.solve(2.0))
+    depth, delta = problem.indentation(problem.time), 1e-4
+    saved = {k: a.copy() for k, a in problem.state_arrays().items()}
+    stepper = TimeStepper(problem, StepOptions(), prefix="transfer_check_")
+    values = []
+    problem.dt.value = 1e-9
+    problem.rate_weights.value[:] = BACKWARD_EULER
+    for d in (depth + delta, depth - delta):
+        for o in problem.obstacles:
+            o.y_tip.value = problem.y_touch + d
+        assert stepper.solve_once()[0] > 0
+        values.append(_sampled_quantities(problem, points))
+        problem.restore()
+    stepper.close()
+    problem.set_time(problem.time)
+    for name, array in problem.state_arrays().items():
+        array[:] = saved[name]
+    for q, v in transfer.items():
+        difference = (values[0][q] - values[1][q]) / (2 * delta)
+        assert v.real == pytest.approx(difference, rel=1e-2), q
+
+
+@pytest.mark.mpi
+def test_run_writes_the_frequency_route(shared_tmp_path):
+    """`fingertip run vibrotactile --frequencies ...`: the tables, the summary, the figures."""
+    import csv
+    import json
+
+    from fingertip_dolfinx.cli import main
+
+    out = shared_tmp_path / "vib"
+    args = ["run", "vibrotactile", "--frequencies", "10,100,250", "--out", str(out), "--quiet",
+            *(f"--set={o}" for o in COARSE)]
+    assert main(args) == 0
+    rows = list(csv.DictReader((out / "frequency_response.csv").open()))
+    assert [float(r["frequency_Hz"]) for r in rows] == [10.0, 100.0, 250.0]
+    for r in rows:  # |Z| = |K|/ω
+        f = float(r["frequency_Hz"])
+        assert float(r["Z_abs_Ns_per_mm2"]) == pytest.approx(
+            float(r["K_abs_N_per_mm2"]) / (2 * math.pi * f), rel=1e-9)
+    sites = list(csv.DictReader((out / "receptor_transfer.csv").open()))
+    assert len(sites) % 3 == 0 and {s["class"] for s in sites} == {"SA1", "RA", "PC"}
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["pressed_state"]["kind"] == "held" and summary["dofs"] > 0
+    assert (out / "impedance.png").exists() and (out / "receptor_transfer_PC.png").exists()
+    assert main(["run", "vibrotactile", "--frequencies", "0:1:3", "--out", str(out)]) == 2
