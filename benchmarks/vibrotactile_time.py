@@ -78,10 +78,24 @@ def report(scene, history, summary, h, wall: float, periods: float) -> None:
         Z = steady_state(s, h[column][after], frequency, periods, trend=True)
         print(f"{column} at {frequency:g} Hz over the last {periods:g} periods: "
               f"|Z| = {abs(Z):.5g} N/mm, |Z|/A = {abs(Z) / amplitude:.5g} N/mm per mm, phase "
-              f"relative to the displacement {math.degrees(cmath.phase(Z / drive)):+.2f} deg")
+              f"relative to the displacement {math.degrees(cmath.phase(Z / drive)):+.2f} deg; "
+              f"{stationarity(s, h[column][after], frequency, periods)}")
     mean = h["force_N_per_mm"][(t > history.onset - 1e-9) & (t < history.onset + 1e-9)]
     if len(mean):
         print(f"static force at the onset {mean[0]:.5g} N/mm")
+
+
+def stationarity(t, signal, frequency: float, periods: float) -> str:
+    """How far from a steady state the window is: |Z| over the last single period against the
+    last `periods`, and the rms of what the fit leaves (transients, harmonics) over |Z|."""
+    Z = steady_state(t, signal, frequency, periods, trend=True)
+    last = steady_state(t, signal, frequency, 1.0, trend=True)
+    window = t >= t[-1] - periods / frequency - 1e-9 / frequency
+    w = 2 * math.pi * frequency
+    rest = signal[window] - (Z * np.exp(1j * w * t[window])).real
+    rest = rest - np.polyval(np.polyfit(t[window], rest, 1), t[window])
+    return (f"|Z| over the last period / over {periods:g}: {abs(last) / abs(Z):.3f}, rms of "
+            f"the rest / |Z|: {np.std(rest) / abs(Z):.3f}")
 
 
 if __name__ == "__main__":
