@@ -146,7 +146,8 @@ class StepOptions:
     #: factor from one step to the next.
     control: str = "iterations"
     #: "backward-euler" (first order) or "bdf2" (variable-step BDF2, second order) for the
-    #: biphasic mass balance.
+    #: biphasic mass balance; "generalized-alpha" for dynamics (a model with inertia): the
+    #: Wood–Bossak–Zienkiewicz method for the inertia (inertia.py), BDF2 for the mass balance.
     scheme: str = "backward-euler"
     #: "generalized-alpha" (dynamics): the spectral radius ρ∞ ∈ [0, 1] at Δt → ∞ of the
     #: Wood–Bossak–Zienkiewicz method (1: trapezoidal rule, no numerical dissipation; 0.8
