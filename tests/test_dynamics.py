@@ -262,6 +262,7 @@ def test_steady_state_recovers_a_harmonic_with_drift():
 # ---- the fingertip ---------------------------------------------------------------------------
 
 
+@pytest.mark.mpi
 def test_fingertip_momentum_balance_with_inertia():
     """The 1 mm bar on a coarse section, pressed 0.3 mm in 0.2 s, then one period at 250 Hz
     with inertia. The discrete momentum balance tested with e_y everywhere (internal forces
@@ -295,7 +296,8 @@ def test_fingertip_momentum_balance_with_inertia():
     diagnostics = problem.diagnostics
 
     def with_inertia():  # before `accept`: a_{n+1} still from this step's u_n
-        return diagnostics() | {"inertia": fem.assemble_scalar(inertial)}
+        local = fem.assemble_scalar(inertial)
+        return diagnostics() | {"inertia": problem.mesh.comm.allreduce(local)}
 
     problem.diagnostics = with_inertia
     options = StepOptions(dt_initial=0.05, dt_max=0.1, scheme="generalized-alpha",
