@@ -89,6 +89,9 @@ class ModelOptions:
     contact_gamma0: float = 10.0
     #: A converged state whose subcutaneous J falls below φ0 + margin is rejected.
     compaction_margin: float = 0.02
+    #: Inertia ∫ ρ a·w dX in the momentum balance (inertia.py; densities from the materials):
+    #: a dynamic run, stepped by the time stepper's "generalized-alpha" scheme. Off: quasi-static.
+    inertia: bool = False
 
     def __post_init__(self):
         if self.displacement_degree not in (1, 2, 3):

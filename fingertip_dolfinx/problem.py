@@ -28,6 +28,12 @@ own: at equilibrium its reaction equals the indenter force, and for a load on th
 line its moment is zero. If a region is rigid (bone, nail), its nodes are clamped instead and
 hold the body. The reaction is the residual tested with e_y on all clamped dofs.
 
+Inertia (`ModelOptions.inertia`, a dynamic run): the momentum balance gains `_inertia`,
+Σ_r ∫_r ρ_r [(1 − α_m) a_{n+1} + α_m a_n]·v dX with a_{n+1} from Newmark's update
+(inertia.py: the Wood–Bossak–Zienkiewicz method, which the time stepper's "generalized-alpha"
+scheme drives); every other part is unchanged and stays at t_{n+1}. Off, the forms are the
+quasi-static ones term for term.
+
 The admissibility checks of a converged state (inverted elements, compaction) are in
 admissibility.py.
 """
@@ -54,6 +60,7 @@ from .contact import (
 )
 from .errors import InputError
 from .indenters import Indenter
+from .inertia import Inertia
 from .kinematics import deformation_gradient
 from .loading import History
 from .mesh import FingertipMesh
@@ -116,6 +123,9 @@ class FingertipProblem:
         if coupling is not None:
             R_u += coupling
         R_u += self._contact(v)
+        self.inertia = None
+        if options.inertia:  # no new term at all in a quasi-static run
+            R_u += self._inertia(v)
         self.residuals = [R_u, *residuals_p]
         self.unknowns = [self.u] + ([self.p] if self.p is not None else [])
         self.bcs, self._reaction_form = self._support(R_u, v)
@@ -174,6 +184,19 @@ class FingertipProblem:
         self._tip_warned = False
         return self.contact.residual(v)
 
+    def _inertia(self, v) -> ufl.Form:
+        """Σ_r ∫_r ρ_r [(1 − α_m) a_{n+1} + α_m a_n]·v dX over the deformable regions
+        (inertia.Inertia; ρ_r from `Tissues.densities()`, the reference densities: ρ dX is the
+        mass, conserved). Rigid regions are clamped and carry none. The biphasic tissue is
+        one u–p mixture whose fluid moves with the solid: the fluid's acceleration relative to
+        the solid (w = n_f(v_f − v_s)) is neglected, so its inertia is the mixture's ρ a,
+        consistent with a relative flux ~ k Grad p that is tiny at these permeabilities."""
+        densities = self.tissues.densities("materials")
+        rigid = set(self.laws.rigid_regions())
+        self.inertia = Inertia(self.u, self.u_n, self.dt, [
+            (densities[r], self.dx(self.tags[r])) for r in REGIONS if r not in rigid])
+        return self.inertia.residual(v)
+
     def _support(self, R_u: ufl.Form, v) -> tuple[list, fem.Form]:
         """Clamp the rigid regions' nodes or, if none is rigid, the nail-centre patch; and the
         reaction form: R_u tested with e_y on the clamped dofs only."""
@@ -201,7 +224,7 @@ class FingertipProblem:
 
     def state_arrays(self) -> dict[str, np.ndarray]:
         """The arrays that define the state, by their checkpoint names: u, u_n, p (if any),
-        u_nm1 (if the pore law has a rate: biphasic, for BDF2), qlv_h{i} and qlv_S_e_n (if the
+        u_nm1 (if the pore law has a rate: biphasic, for BDF2), v_n and a_n (with inertia), qlv_h{i} and qlv_S_e_n (if the
         skin is viscoelastic). They are the live arrays: writing into them sets the state
         (then scatter_forward the unknowns, mark_accepted)."""
         arrays = {"u": self.u.x.array, "u_n": self.u_n.x.array}
@@ -209,6 +232,8 @@ class FingertipProblem:
             arrays["p"] = self.p.x.array
         if getattr(self.laws.pore, "has_rate", False):
             arrays["u_nm1"] = self.u_nm1.x.array
+        if self.inertia is not None:
+            arrays |= self.inertia.arrays()
         return arrays | self.laws.history_arrays()
 
     def region_energies(self) -> dict[int, ufl.core.expr.Expr]:
@@ -238,6 +263,8 @@ class FingertipProblem:
     def accept(self) -> None:
         for law in self.laws.with_history():
             law.history.advance()
+        if self.inertia is not None:  # Newmark's update needs u_n of the step: first
+            self.inertia.advance()
         self.u_nm1.x.array[:] = self.u_n.x.array
         self.u_n.x.array[:] = self.u.x.array
         self._last = [f.x.array.copy() for f in self.unknowns]

@@ -126,6 +126,10 @@ class Scene:
             raise InputError(f"{self.name}: protocol", f"the indentation never exceeds "
                              f"{self.history.deepest:g} mm: the indenters would not press.",
                              "give a positive depth (mm after first touch).")
+        if self.model.inertia and self.steps.scheme != "generalized-alpha":
+            raise InputError(f"{self.name}: steps.scheme", f"{self.steps.scheme!r} integrates "
+                             "no acceleration, but model.inertia is on.",
+                             'use scheme = "generalized-alpha", or inertia = false.')
         if not self.outputs.times:
             self.outputs = dataclasses.replace(self.outputs, times=(self.history.end_time,))
         self._check_outputs()

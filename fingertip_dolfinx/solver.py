@@ -8,6 +8,16 @@ backward Euler (first order, the default) or variable-step BDF2 (second order;
 backward Euler. The skin's QLV history keeps its own recursion (exact for a stress linear over
 the step: second order for a smooth one); elasticity and contact are quasi-static.
 
+Dynamics (a problem with `inertia`, model option `inertia`): the scheme "generalized-alpha"
+integrates the inertia by the Wood–Bossak–Zienkiewicz method (generalised-α with α_f = 0,
+inertia.py; second order, numerical dissipation `rho_inf` ∈ [0, 1], 1 the trapezoidal rule)
+and the biphasic mass balance by BDF2 as above; with α_f = 0 the internal forces, QLV,
+pore pressure and contact stay at t_{n+1}. A dynamic step must resolve the load's shortest
+period: when the history has a `period` (loading.Vibration), Δt ≤ period/`steps_per_period`
+from its `onset` on (before it, in the quasi-static press and hold, the steps grow as usual:
+the inertia is on but negligible there, ρ d̈ ~ 0 on a ramp, and ρ∞ < 1 damps the start-up
+transients of the Newmark velocity at the ramp's kink by ρ∞ per large step).
+
 Step sizes (`StepOptions.control`):
 
 - "iterations" (the default): the step grows ×`growth` while Newton converges easily
@@ -65,7 +75,9 @@ DEFAULT_PETSC_OPTIONS = {
 }
 
 CONTROLS = ("iterations", "error")
-SCHEMES = ("backward-euler", "bdf2")
+SCHEMES = ("backward-euler", "bdf2", "generalized-alpha")
+#: Schemes whose biphasic rate is BDF2 (generalised-α keeps the mass balance second order).
+SECOND_ORDER_RATE = ("bdf2", "generalized-alpha")
 #: Variable-step BDF2 is zero-stable for step ratios ω = Δt_n/Δt_{n−1} < 1 + √2.
 BDF2_GROWTH_LIMIT = 1 + math.sqrt(2)
 #: The smallest factor by which error control shrinks a step it rejects or follows.
@@ -134,8 +146,17 @@ class StepOptions:
     #: factor from one step to the next.
     control: str = "iterations"
     #: "backward-euler" (first order) or "bdf2" (variable-step BDF2, second order) for the
-    #: biphasic mass balance.
+    #: biphasic mass balance; "generalized-alpha" for dynamics (a model with inertia): the
+    #: Wood–Bossak–Zienkiewicz method for the inertia (inertia.py), BDF2 for the mass balance.
     scheme: str = "backward-euler"
+    #: "generalized-alpha" (dynamics): the spectral radius ρ∞ ∈ [0, 1] at Δt → ∞ of the
+    #: Wood–Bossak–Zienkiewicz method (1: trapezoidal rule, no numerical dissipation; 0.8
+    #: damps the unresolved mesh modes that contact and kinks of the load excite while
+    #: keeping the resolved ones: a relative period error and damping ~(ωΔt)²).
+    rho_inf: float = 0.8
+    #: Steps per shortest period of a periodic load (a history with `period`, after its
+    #: `onset`): the largest step there is period/steps_per_period.
+    steps_per_period: int = 40
     #: Error control: per unknown field, max |local error| <= atol + rtol * (largest |value|
     #: the field has reached). atol in the unknowns' units, mm (displacement) and MPa
     #: (pressure): the floor that keeps the first steps from rest, where every field is still
@@ -156,7 +177,17 @@ class StepOptions:
         if not (self.rtol >= 0 and self.atol >= 0 and self.rtol + self.atol > 0
                 and 0 < self.safety <= 1):
             raise ValueError("need rtol >= 0, atol >= 0, rtol + atol > 0, 0 < safety <= 1")
-        if self.scheme == "bdf2" and not self.growth < BDF2_GROWTH_LIMIT:
+        if not 0.0 <= self.rho_inf <= 1.0:
+            raise ValueError(f"need 0 <= rho_inf <= 1, got {self.rho_inf}")
+        if isinstance(self.steps_per_period, bool) or not (
+                isinstance(self.steps_per_period, int) and self.steps_per_period >= 4):
+            raise ValueError(f"steps_per_period must be an integer >= 4 (a step per quarter "
+                             f"period at least), got {self.steps_per_period!r}")
+        if self.scheme == "generalized-alpha" and self.control == "error":
+            raise ValueError("control = 'error' has no error estimate for the generalized-alpha "
+                             "scheme: use control = 'iterations' (steps_per_period sets the "
+                             "accuracy)")
+        if self.scheme in SECOND_ORDER_RATE and not self.growth < BDF2_GROWTH_LIMIT:
             raise ValueError(f"BDF2 is unstable for step ratios above 1 + √2: need growth < "
                              f"{BDF2_GROWTH_LIMIT:.4f}, got {self.growth}")
 
@@ -208,6 +239,19 @@ class TimeStepper:
         )
         self.snes = self.nonlinear.solver
         self._watch_residual()
+        self._set_dynamics()
+
+    def _set_dynamics(self) -> None:
+        """Give a problem with inertia the scheme's ρ∞; refuse a quasi-static scheme for it."""
+        inertia = getattr(self.problem, "inertia", None)
+        if inertia is None:
+            return
+        if self.options.scheme != "generalized-alpha":
+            raise FingertipError(
+                f"the model has inertia but steps.scheme is {self.options.scheme!r}, which "
+                "integrates no acceleration. Fix: steps.scheme = \"generalized-alpha\" (or "
+                "model.inertia = false for a quasi-static run).")
+        inertia.set_dissipation(self.options.rho_inf)
 
     def close(self) -> None:
         """Destroy the solver's PETSc objects now, on every rank together.
@@ -281,8 +325,10 @@ class TimeStepper:
                       [states[-1]], maxlen=3)
         own = 0
         self._peaks = [_max_abs(f) for f in problem.unknowns]
+        resolve = _period_limit(history, opts.steps_per_period)
         while t < end_time - 1e-12 * max(1.0, end_time):
             started = wallclock.perf_counter()
+            dt = resolve(t, dt)
             cuts, why, closed_iterates = 0, "", 0
             rejected, extra_iterations = 0, 0
             restart = error_control and len(since) == 1
@@ -419,7 +465,7 @@ class TimeStepper:
         times = [s[0] for s in since]
         dts = [t_new - times[-1], *np.diff(times)[::-1]]  # Δt_n, Δt_{n−1}, ...
         needed = 3 if opts.control == "error" else 2
-        bdf2 = opts.scheme == "bdf2" and own >= 1 and len(since) >= needed
+        bdf2 = opts.scheme in SECOND_ORDER_RATE and own >= 1 and len(since) >= needed
         weights = getattr(problem, "rate_weights", None)
         if weights is not None:
             weights.value[:] = bdf2_weights(dts[0] / dts[1]) if bdf2 else BACKWARD_EULER
@@ -493,11 +539,21 @@ class TimeStepper:
             dt = taken * _factor(err, order, opts.safety, opts.growth)
             if planned > taken * (1 + 1e-9) and dt >= taken:  # cut short by a breakpoint
                 dt = max(dt, planned)
-        if opts.scheme == "bdf2":
+        if opts.scheme in SECOND_ORDER_RATE:
             dt = min(dt, opts.growth * last)  # BDF2's step ratio stays below 1 + √2
         if hard:
             dt = min(dt, taken)
         return min(dt, opts.dt_max)
+
+
+def _period_limit(history, steps_per_period: int) -> Callable[[float, float], float]:
+    """dt ↦ min(dt, period/steps_per_period) from the history's `onset` on (0 if it has
+    none), if it has a `period`; else dt unchanged."""
+    period = getattr(history, "period", None)
+    if period is None:
+        return lambda t, dt: dt
+    onset, largest = getattr(history, "onset", 0.0), period / steps_per_period
+    return lambda t, dt: min(dt, largest) if t >= onset - 1e-12 * max(1.0, onset) else dt
 
 
 def _is_mark(t: float, marks: Sequence[float]) -> bool:

@@ -7,7 +7,8 @@ s, MPa; plane strain, so forces are per unit thickness (N/mm).
 
 - `ConfinedBlock`: a block on rollers loaded on its top (a traction strip or a displacement):
   biphasic (consolidation, creep, undrained strip load), viscoelastic (a relaxing strip) or
-  hyperelastic. A `Steppable` for `solver.TimeStepper`.
+  hyperelastic (or, `small_strain`, exactly linear); with a `density`, dynamic (inertia.py:
+  free vibration, a harmonically driven layer). A `Steppable` for `solver.TimeStepper`.
 - `Terzaghi`: the drained-top consolidation column and its exact pore pressure and settlement,
   after any time t (Terzaghi's series) and after one backward-Euler step.
 - `Hertz` and `HertzBlock`: a rigid cylinder pressed into a linear-elastic half block with
@@ -15,7 +16,9 @@ s, MPa; plane strain, so forces are per unit thickness (N/mm).
 - `VibratingLayer`: a viscoelastic hyperfoam layer on a rigid base, laterally confined, its
   top shaken harmonically: the standing wave of uniaxial strain in closed form, the exact check
   of the frequency-domain route (`harmonic`: G*(ω), the mass, the real block form).
-- Closed forms: `confined_modulus`, `confined_drained_stress`, `prony_ramp_integral`.
+- Closed forms: `confined_modulus`, `confined_drained_stress`, `prony_ramp_integral`; for
+  dynamics `prony_complex_modulus` and the harmonically driven layer (`driven_layer`,
+  `driven_layer_force`).
 - Wiring: `newton_problem` (a NonlinearProblem with the solver's SNES set-up),
   `support_reaction`, `contact_edge`.
 """
@@ -38,6 +41,7 @@ from ..admissibility import Admissibility, Compaction
 from ..contact import NitscheContact, Obstacle, p_wave_modulus
 from ..harmonic import Linearisation, ViscousPart, complex_modulus, qlv_tangent
 from ..indenters import Cylinder
+from ..inertia import Inertia
 from ..kinematics import deformation_gradient
 from ..loading import RampHold
 from ..poroelasticity import biphasic_residuals
@@ -149,6 +153,34 @@ def prony_ramp_integral(prony, t: float, T: float = 1.0) -> float:
                                   for g, tau in zip(prony.g, prony.tau))
 
 
+def prony_complex_modulus(prony, omega: float) -> complex:
+    """G*(ω) = g∞ + Σ g_i iωτ_i/(1 + iωτ_i): the QLV relaxation function's complex modulus
+    (normalised, G*(∞) = g(0) = 1), the Fourier transform of ġ(t) plus g∞. A stress
+    linear in the strain history S = ∫ g(t − s) dS_e(s) answers a harmonic S_e e^{iωt} by
+    G*(ω) S_e e^{iωt} in the steady state."""
+    return prony.g_inf + sum(g * 1j * omega * tau / (1 + 1j * omega * tau)
+                             for g, tau in zip(prony.g, prony.tau))
+
+
+def driven_layer(y, H: float, omega: float, density: float, modulus: complex) -> np.ndarray:
+    r"""u(y)/U of a uniform layer 0 ≤ y ≤ H held at y = 0 and displaced U e^{iωt} at y = H,
+    laterally confined (a one-dimensional P-wave), in the steady state:
+
+        M* u'' + ρ ω² u = 0,  u(0) = 0, u(H) = U  ⇒  u(y) = U sin(k y)/sin(k H),
+
+    k = ω sqrt(ρ/M*), M* the complex confined modulus (M0 G*(ω) for a QLV solid). Complex:
+    the amplitude and phase relative to the drive (either root k: the ratio is even in k)."""
+    k = omega * np.sqrt(density / complex(modulus))
+    return np.sin(k * np.asarray(y, dtype=float)) / np.sin(k * H)
+
+
+def driven_layer_force(H: float, omega: float, density: float, modulus: complex) -> complex:
+    """The top traction σ_yy(H)/U = M* k cos(kH)/sin(kH) (MPa/mm) of `driven_layer`: the force
+    per unit width that holds the driven top, per unit drive amplitude."""
+    k = omega * np.sqrt(density / complex(modulus))
+    return complex(modulus) * k * np.cos(k * H) / np.sin(k * H)
+
+
 # ---- wiring ----------------------------------------------------------------------------------
 
 
@@ -182,6 +214,12 @@ def support_reaction(P, V, dofs) -> float:
 # ---- the confined block (column) ---------------------------------------------------------------
 
 
+def _small_strain_stress(solid: mat.LinearElastic, u) -> ufl.core.expr.Expr:
+    """σ = λ tr(ε) I + 2μ ε, ε = sym Grad u: exactly linear in u (the dynamics' exact checks)."""
+    eps = ufl.sym(ufl.grad(u))
+    return solid.lmbda * ufl.tr(eps) * ufl.Identity(2) + 2 * solid.mu * eps
+
+
 class ConfinedBlock:
     """A Steppable block [0, W] × [0, H] (mm) on rollers: u_x = 0 on the sides, u_y = 0 at the
     bottom, so that a load over the whole top gives the one-dimensional confined state.
@@ -204,7 +242,8 @@ class ConfinedBlock:
 
     def __init__(self, nx, ny, load, *, tissue=None, solid=None, prony=None, degree_u=2,
                  width=1.0, H=1.0, load_width=None, drained_top=False, top_displacement=False,
-                 diagonal="right", compaction_margin=0.02, grading=1.0, comm=MPI.COMM_SELF):
+                 diagonal="right", compaction_margin=0.02, grading=1.0, density=None,
+                 small_strain=False, comm=MPI.COMM_SELF):
         self.msh = mesh.create_rectangle(comm, [[0.0, 0.0], [width, H]], [nx, ny],
                                          diagonal=getattr(mesh.DiagonalType, diagonal))
         if grading != 1.0:  # cells shrink geometrically towards the drained boundary
@@ -224,10 +263,16 @@ class ConfinedBlock:
         self.value = fem.Constant(self.msh, 0.0)  # the top load now (MPa, or mm downwards)
         self.ds = self._top_measure()
         F = deformation_gradient(self.u)
-        S = mat.second_piola_kirchhoff(solid or tissue.solid, F)
+        self.solid, self.small_strain = solid or tissue.solid, small_strain
+        S = _small_strain_stress(solid, self.u) if small_strain else \
+            mat.second_piola_kirchhoff(self.solid, F)
         self.qlv = None if prony is None else QuasiLinearViscoelasticity(
             S, prony, self.msh, QUADRATURE_DEGREE, self.dt)
-        self.residuals = self._residuals(F * (S if self.qlv is None else self.qlv.stress()))
+        S_total = S if self.qlv is None else self.qlv.stress()
+        self.inertia = None if density is None else Inertia(
+            self.u, self.u_n, self.dt,
+            [(density, ufl.dx(metadata={"quadrature_degree": QUADRATURE_DEGREE}))])
+        self.residuals = self._residuals(S_total if small_strain else F * S_total)
         self.bcs = self._bcs(drained_top)
         self.entity_maps = None
         self._last = [f.x.array.copy() for f in self.unknowns]
@@ -262,6 +307,8 @@ class ConfinedBlock:
                                                 self.rate_weights))
         if not self.top_displacement:
             residuals[0] += self.value * v[1] * self.ds(1)
+        if self.inertia is not None:
+            residuals[0] += self.inertia.residual(v)
         return residuals
 
     def _bcs(self, drained_top: bool) -> list[fem.DirichletBC]:
@@ -293,6 +340,8 @@ class ConfinedBlock:
     def accept(self):
         if self.qlv is not None:
             self.qlv.advance()
+        if self.inertia is not None:
+            self.inertia.advance()
         self.u_nm1.x.array[:] = self.u_n.x.array
         self.u_n.x.array[:] = self.u.x.array
         self._last = [f.x.array.copy() for f in self.unknowns]
@@ -306,6 +355,8 @@ class ConfinedBlock:
         arrays = {"u": self.u.x.array, "u_n": self.u_n.x.array, "u_nm1": self.u_nm1.x.array}
         if self.p is not None:
             arrays["p"] = self.p.x.array
+        if self.inertia is not None:
+            arrays |= self.inertia.arrays()
         if self.qlv is not None:
             arrays |= {f"qlv_{i}": f.x.array for i, f in enumerate([*self.qlv.h, self.qlv.S_e_n])}
         return arrays
@@ -332,6 +383,18 @@ class ConfinedBlock:
         return out
 
     # outputs ----------------------------------------------------------------------------------
+    def strain_energy(self) -> float:
+        """∫ W dX (N·mm/mm) of the elastic solid: ½ σ:ε at small strain, else W(C)."""
+        if not hasattr(self, "_energy_form"):
+            if self.small_strain:
+                eps = ufl.sym(ufl.grad(self.u))
+                W = 0.5 * ufl.inner(_small_strain_stress(self.solid, self.u), eps)
+            else:
+                W = mat.strain_energy_density(self.solid, deformation_gradient(self.u))
+            self._energy_form = fem.form(W * ufl.dx(metadata={
+                "quadrature_degree": QUADRATURE_DEGREE}))
+        return self.msh.comm.allreduce(fem.assemble_scalar(self._energy_form))
+
     def settlement(self) -> float:
         """Mean downward displacement of the loaded part of the top (mm)."""
         return self.msh.comm.allreduce(fem.assemble_scalar(self._settle)) / self.load_width
