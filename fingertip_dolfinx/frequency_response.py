@@ -236,6 +236,7 @@ def run_frequency_response(scene: Scene, out: str | Path, *, frequencies=None,
     if comm.rank == 0 and scene.outputs.pictures:
         plot_impedance(rows, out / "impedance.png", scene.name)
         plot_receptor_transfer(site_rows, out, population, scene.name)
+    comm.barrier()  # every file is written when any rank returns (rank 0 draws)
     return summary
 
 
