@@ -60,7 +60,7 @@ from .mesh import build_mesh
 from .outputs import CsvLog, prepare_directory, write_json
 from .post import PointSampler, QuadratureProjection, accepted_stress
 from .problem import FingertipProblem
-from .receptors import CLASSES, QUANTITIES, load_receptors
+from .receptors import CLASSES, QUANTITIES, load_receptors, pressure_sampling
 from .scene import Scene, scene_record
 
 RESPONSE_COLUMNS = ("frequency_Hz", "K_abs_N_per_mm2", "K_phase_deg", "Z_abs_Ns_per_mm2",
@@ -109,17 +109,8 @@ class SiteTransfer:
         return expand_derivatives(ufl.derivative(expr, self.problem.u, self.du))
 
     def _pressure_sampling(self, problem, points) -> None:
-        self.dp, self.pressure, self.in_tissue = None, None, None
-        if problem.p is None:
-            return
-        self.dp = fem.Function(problem.p.function_space)
-        tags = problem.fmesh.cell_tags
-        region = fem.Function(fem.functionspace(problem.mesh, ("DG", 0)))
-        region.x.array[tags.indices] = tags.values
-        inside = self.sampler(region)
-        self.in_tissue = (None if inside is None
-                          else np.isclose(inside[:, 0], problem.tags["subcutaneous"]))
-        self.pressure = PointSampler(problem.submesh, points)
+        self.pressure, self.in_tissue = pressure_sampling(problem, self.sampler, points)
+        self.dp = None if problem.p is None else fem.Function(problem.p.function_space)
 
     def _real_part(self, arrays: list[np.ndarray]) -> dict[str, np.ndarray] | None:
         """Dq[δ] at the points for one real direction δ = (δu, δp)."""

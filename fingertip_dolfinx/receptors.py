@@ -567,6 +567,25 @@ def threshold_amplitude(lif: LIF, frequency: float, *, offset: float = 0.0, cycl
 # --- sampling in a run -----------------------------------------------------------------------
 
 
+def pressure_sampling(problem, sampler, points: np.ndarray):
+    """(sampler of the pore pressure at `points`, mask of the points in subcutaneous cells), or
+    (None, None) if the problem has no pressure. The submesh's sampler also answers for points
+    just outside the submesh (the closest cell): keep the pressure only where the mask is
+    true. `sampler` samples the whole mesh at the same points (the mask is None on ranks that
+    receive no samples)."""
+    if problem.p is None:
+        return None, None
+    from dolfinx import fem  # here: reading receptor data needs no DOLFINx
+
+    from .post import PointSampler
+
+    tags = problem.fmesh.cell_tags
+    region = fem.Function(fem.functionspace(problem.mesh, ("DG", 0)))
+    region.x.array[tags.indices] = tags.values
+    inside = sampler(region)
+    in_tissue = None if inside is None else np.isclose(inside[:, 0], problem.tags["subcutaneous"])
+    return PointSampler(problem.submesh, points), in_tissue
+
 class ReceptorRecorder:
     """Samples the stimulus quantities at a population's sites after every accepted step and
     writes receptors.csv, and the set itself to receptors.json (rank 0). Collective: every
@@ -586,17 +605,8 @@ class ReceptorRecorder:
         self.problem, self.derived, self.population = problem, derived, population
         self.sites = population.sites(outer)
         self.sampler = PointSampler(problem.mesh, self.sites.points)
-        self.pressure = None
-        if problem.p is not None:
-            # The submesh's sampler also answers for points just outside the submesh (the
-            # closest cell): keep the pressure only at the sites in subcutaneous cells.
-            tags = problem.fmesh.cell_tags
-            region = fem.Function(fem.functionspace(problem.mesh, ("DG", 0)))
-            region.x.array[tags.indices] = tags.values
-            inside = self.sampler(region)
-            self.in_tissue = (None if inside is None
-                              else np.isclose(inside[:, 0], problem.tags["subcutaneous"]))
-            self.pressure = PointSampler(problem.submesh, self.sites.points)
+        self.pressure, self.in_tissue = pressure_sampling(problem, self.sampler,
+                                                          self.sites.points)
         laws = {problem.tags[name]: law for name, law in problem.laws.regions.items()}
         self.stress = CauchyStress(problem.u, problem.fmesh.cell_tags, laws,
                                    problem.options.quadrature_degree)

@@ -15,6 +15,7 @@ import pytest
 
 from fingertip_dolfinx import materials as mat
 from fingertip_dolfinx.errors import FingertipError, InputError
+from fingertip_dolfinx.harmonic import complex_modulus
 from fingertip_dolfinx.inertia import wbz_parameters
 from fingertip_dolfinx.loading import Vibration
 from fingertip_dolfinx.scene import load_scene
@@ -23,7 +24,6 @@ from fingertip_dolfinx.studies.problems import (
     ConfinedBlock,
     driven_layer,
     driven_layer_force,
-    prony_complex_modulus,
 )
 from fingertip_dolfinx.studies.signals import steady_state
 
@@ -183,7 +183,7 @@ def _driven_layer(steps_per_period: int, periods: int = 12):
 
     stepper.run(block.load, periods / f, on_step=record)
     stepper.close()
-    modulus = M0 * prony_complex_modulus(PRONY, OMEGA)
+    modulus = M0 * complex_modulus(PRONY, OMEGA)
     drive = 1j * U  # −U sin ωt = Re(iU e^{iωt})
     exact_u = drive * driven_layer(np.array([H / 2]), H, OMEGA, RHO, modulus)[0]
     exact_force = drive * driven_layer_force(H, OMEGA, RHO, modulus) * W

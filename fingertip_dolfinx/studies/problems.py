@@ -17,8 +17,8 @@ s, MPa; plane strain, so forces are per unit thickness (N/mm).
   top shaken harmonically: the standing wave of uniaxial strain in closed form, the exact check
   of the frequency-domain route (`harmonic`: G*(ω), the mass, the real block form).
 - Closed forms: `confined_modulus`, `confined_drained_stress`, `prony_ramp_integral`; for
-  dynamics `prony_complex_modulus` and the harmonically driven layer (`driven_layer`,
-  `driven_layer_force`).
+  dynamics the harmonically driven layer (`driven_layer`, `driven_layer_force`; the
+  complex modulus is `harmonic.complex_modulus`).
 - Wiring: `newton_problem` (a NonlinearProblem with the solver's SNES set-up),
   `support_reaction`, `contact_edge`.
 """
@@ -151,15 +151,6 @@ def prony_ramp_integral(prony, t: float, T: float = 1.0) -> float:
     t1 = min(t, T)
     return prony.g_inf * t1 + sum(g * tau * (np.exp(-(t - t1) / tau) - np.exp(-t / tau))
                                   for g, tau in zip(prony.g, prony.tau))
-
-
-def prony_complex_modulus(prony, omega: float) -> complex:
-    """G*(ω) = g∞ + Σ g_i iωτ_i/(1 + iωτ_i): the QLV relaxation function's complex modulus
-    (normalised, G*(∞) = g(0) = 1), the Fourier transform of ġ(t) plus g∞. A stress
-    linear in the strain history S = ∫ g(t − s) dS_e(s) answers a harmonic S_e e^{iωt} by
-    G*(ω) S_e e^{iωt} in the steady state."""
-    return prony.g_inf + sum(g * 1j * omega * tau / (1 + 1j * omega * tau)
-                             for g, tau in zip(prony.g, prony.tau))
 
 
 def driven_layer(y, H: float, omega: float, density: float, modulus: complex) -> np.ndarray:
@@ -970,19 +961,16 @@ class VibratingLayer:
             viscous=[ViscousPart([[material]], self.prony)], drive=[v[1] * ds],
             force=[v[1] / self.W * ds], bcs=self._bcs())
 
-    def wavenumber(self, frequency: float) -> complex:
+    def modulus(self, frequency: float) -> complex:
+        """M*(ω) = M0 G*(ω), the complex confined modulus (MPa)."""
         omega = 2 * math.pi * frequency
-        modulus = confined_modulus(self.solid) * complex_modulus(self.prony, omega)
-        return omega * np.sqrt(self.rho / modulus)
+        return confined_modulus(self.solid) * complex_modulus(self.prony, omega)
 
     def exact_stiffness(self, frequency: float) -> complex:
         """M* k cot(k H): the top traction per unit top displacement (MPa/mm)."""
-        omega = 2 * math.pi * frequency
-        k = self.wavenumber(frequency)
-        modulus = confined_modulus(self.solid) * complex_modulus(self.prony, omega)
-        return modulus * k / np.tan(k * self.H)
+        return driven_layer_force(self.H, 2 * math.pi * frequency, self.rho,
+                                  self.modulus(frequency))
 
     def exact_profile(self, y: np.ndarray, frequency: float) -> np.ndarray:
         """u_y(y) per unit top displacement: sin(k y)/sin(k H)."""
-        k = self.wavenumber(frequency)
-        return np.sin(k * np.asarray(y)) / np.sin(k * self.H)
+        return driven_layer(y, self.H, 2 * math.pi * frequency, self.rho, self.modulus(frequency))
