@@ -110,7 +110,8 @@ class Run:
         steps = scene.steps
         if resume:
             steps = self._resume()
-        self.stepper = TimeStepper(self.problem, steps, scene.petsc_options)
+        self.stepper = TimeStepper(self.problem, steps, scene.petsc_options,
+                                   linear=scene.linear)
         self.dofs = sum(f.function_space.dofmap.index_map.size_global
                         * f.function_space.dofmap.index_map_bs for f in self.problem.unknowns)
         after = self.start_time if resume else None

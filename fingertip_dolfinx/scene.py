@@ -20,6 +20,7 @@ from .errors import InputError
 from .geometry import Section, load_section
 from .harmonic import HarmonicOptions
 from .indenters import Indenter, load_indenter, make_indenter
+from .linear_solvers import check_linear
 from .loading import KINDS, LoadHistory, history_from_dict
 from .model import ModelOptions
 from .solver import StepOptions
@@ -113,9 +114,13 @@ class Scene:
     #: `[harmonic]`: the small-signal frequency response about the pressed state
     #: (harmonic.py); None: the scene has no such table.
     harmonic: HarmonicOptions | None = None
+    #: `[solver] linear`: the linear solver inside Newton, "direct" (MUMPS) or "iterative"
+    #: (Krylov with a field-split multigrid preconditioner; linear_solvers.py).
+    linear: str = "direct"
 
     def __post_init__(self):
         self.indenters = list(self.indenters)
+        check_linear(self.linear, f"{self.name}: solver.linear")
         if not self.indenters:
             raise InputError(f"{self.name}: indenters", "no indenter given.",
                              "add an [[indenters]] table.")
@@ -263,7 +268,8 @@ def scene_from_dict(data: dict, where: str = "scene") -> Scene:
         materials=_materials(data.get("materials", {}), f"{where}: materials"),
         model=_options(ModelOptions, data.get("model", {}), f"{where}: model"),
         steps=_options(StepOptions, data.get("steps", {}), f"{where}: steps"),
-        petsc_options=dict(data.get("solver", {})),
+        petsc_options=_petsc_options(data.get("solver", {}), f"{where}: solver"),
+        linear=data.get("solver", {}).get("linear", "direct"),
         outputs=_options(Outputs, data.get("output", {}), f"{where}: output"),
         accuracy=_options(Accuracy, data.get("accuracy", {}), f"{where}: accuracy"),
         harmonic=(_options(HarmonicOptions, data["harmonic"], f"{where}: harmonic")
@@ -297,6 +303,20 @@ def _pair(indenters: list[Indenter], spacing, where: str) -> list[Indenter]:
         raise InputError(where, f"{spacing} mm does not separate two indenters {width} mm "
                          "wide.", f"use a spacing above {width} mm.")
     return [dataclasses.replace(indenters[0], centre_x=s * spacing / 2) for s in (-1, 1)]
+
+
+def _petsc_options(data: Mapping, where: str) -> dict:
+    """`[solver]`: `linear` picks the linear solver; every other key is a PETSc option of the
+    time stepper's SNES (as `snes_atol = 1e-9`), and so is every key of an optional
+    `petsc_options` sub-table."""
+    if not isinstance(data, Mapping):
+        raise InputError(where, f"must be a table, got {data!r}.", "write [solver].")
+    options = {k: v for k, v in data.items() if k not in ("linear", "petsc_options")}
+    extra = data.get("petsc_options", {})
+    if not isinstance(extra, Mapping):
+        raise InputError(f"{where}.petsc_options", f"must be a table, got {extra!r}.",
+                         "write petsc_options = { ksp_rtol = 1e-10 }.")
+    return options | dict(extra)
 
 
 def _materials(data: Mapping, where: str) -> Tissues:
@@ -335,7 +355,7 @@ def scene_record(scene: Scene) -> dict:
                                       for f in dataclasses.fields(history) if f.init}},
         "model": dataclasses.asdict(scene.model),
         "steps": dataclasses.asdict(scene.steps),
-        "solver": scene.petsc_options,
+        "solver": {"linear": scene.linear, **scene.petsc_options},
         "output": dataclasses.asdict(scene.outputs),
         "accuracy": dataclasses.asdict(scene.accuracy),
     } | ({} if scene.harmonic is None else {"harmonic": dataclasses.asdict(scene.harmonic)}))

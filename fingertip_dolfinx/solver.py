@@ -58,6 +58,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from .errors import CompactionError, ConvergenceError, FingertipError
+from .linear_solvers import DIRECT_OPTIONS, LinearSolver
 from .loading import step_times
 
 #: Newton with a backtracking line search and a direct solve (MUMPS): robust for contact and
@@ -223,10 +224,14 @@ class TimeStepper:
         options: StepOptions | None = None,
         petsc_options: dict | None = None,
         prefix: str = "fingertip_",
+        linear: str = "direct",
     ):
         self.problem = problem
         self.options = options or StepOptions()
-        opts = {**DEFAULT_PETSC_OPTIONS, **(petsc_options or {})}
+        #: The linear solver inside Newton (linear_solvers.py): "direct" (MUMPS) or "iterative".
+        self.linear = LinearSolver(linear, problem)
+        newton = {k: v for k, v in DEFAULT_PETSC_OPTIONS.items() if k not in DIRECT_OPTIONS}
+        opts = {**newton, **self.linear.options, **(petsc_options or {})}
         # One NonlinearProblem for the whole run: its forms are compiled here, once.
         self.nonlinear = dolfinx.fem.petsc.NonlinearProblem(
             problem.residuals,
@@ -238,6 +243,9 @@ class TimeStepper:
             petsc_options=opts,
         )
         self.snes = self.nonlinear.solver
+        self.linear.attach(self.nonlinear, prefix, opts)
+        #: Krylov iterations of all solves so far (1 per Newton step with the direct solver).
+        self.linear_iterations = 0
         self._watch_residual()
         self._set_dynamics()
 
@@ -261,6 +269,7 @@ class TimeStepper:
         alone draws the figures, which triggers a collection) and `mpiexec` runs hang at exit.
         """
         nonlinear = self.nonlinear
+        self.linear.release()
         for obj in (nonlinear.solver, nonlinear.A, nonlinear.P_mat, nonlinear.b, nonlinear.x):
             if obj is not None:
                 obj.destroy()
@@ -289,6 +298,7 @@ class TimeStepper:
         self._evaluations, self._closed = 0, None
         with np.errstate(all="ignore"):
             self.nonlinear.solve()
+        self.linear_iterations += self.snes.getLinearSolveIterations()
         return self.snes.getConvergedReason(), self.snes.getIterationNumber()
 
     def run(

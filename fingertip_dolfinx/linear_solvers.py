@@ -1,0 +1,241 @@
+"""The linear solver inside Newton: a direct LU (MUMPS) or a preconditioned Krylov method.
+
+Every Newton step solves J δ = −R with J the Jacobian of the coupled problem: the displacement
+block K (all regions) and, with a pore law, the pore pressure p on the subcutaneous submesh,
+
+    J = [ K   Bᵀ ]      K: elasticity + contact,  B: −∫ q J F⁻ᵀ : Grad δu (the mass balance),
+        [ B  −C  ]      C: Δt J k C⁻¹ Grad p · Grad q (biphasic; 0 undrained).
+
+"direct" (the default): MUMPS LU of the whole of J; exact, robust, memory ~ n^1.5 in 2D.
+"iterative": FGMRES preconditioned by a Schur-complement field split (PETSc PCFIELDSPLIT):
+K by smoothed-aggregation algebraic multigrid (GAMG, told the rigid-body modes of the
+displacement space: its near null space) and the pressure Schur complement
+S = −C − B K⁻¹ Bᵀ by GAMG on its "selfp" approximation −C − B diag(K)⁻¹ Bᵀ. Without a pore
+law the split has nothing to do: CG is not safe (contact makes K non-symmetric: Nitsche θ = 0),
+so GMRES with GAMG on K.
+
+Both are chosen by scene data (`[solver] linear = "direct" | "iterative"`); any PETSc option
+given in `[solver]` overrides the configuration's (under the stepper's prefix:
+`fieldsplit_u_pc_gamg_threshold = 0.02`, `ksp_rtol = 1e-10`, ...).
+
+The dofs of the block ("mpi" kind) matrix are, on each rank, the owned u dofs and then the
+owned p dofs; the split's index sets follow from the index maps. The near null space is
+composed with the u index set ("nearnullspace"), where PCFIELDSPLIT hands it to the extracted
+K block. The construction is the same in 2D (3 rigid modes) and 3D (6).
+"""
+
+from __future__ import annotations
+
+import dolfinx.fem.petsc  # noqa: F401  (the PETSc assemblers)
+import numpy as np
+import ufl
+from dolfinx import fem
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from .errors import InputError
+
+LINEAR = ("direct", "iterative")
+
+#: LU of the whole Jacobian (MUMPS): robust for contact and for the undrained saddle point.
+DIRECT_OPTIONS = {
+    "ksp_type": "preonly",
+    "pc_type": "lu",
+    "pc_factor_mat_solver_type": "mumps",
+}
+
+#: The Krylov tolerance. Newton's own tolerances (snes_rtol 1e-9, snes_atol 1e-10 N/mm) need
+#: each linear solve to reduce its residual further than Newton's quadratic rate would:
+#: an inexact Newton step with relative tolerance η converges linearly at rate η.
+KSP_RTOL = 1e-10
+
+_KRYLOV = {
+    "ksp_type": "fgmres",  # flexible: the field split's inner solves vary between iterations
+    "ksp_rtol": KSP_RTOL,
+    "ksp_atol": 1e-14,
+    "ksp_max_it": 400,
+    "ksp_gmres_restart": 200,
+    "ksp_norm_type": "unpreconditioned",  # the tolerance on the true residual
+    "ksp_error_if_not_converged": False,  # a failed solve fails Newton's step: it is cut
+}
+
+#: GAMG on the displacement block: smoothed aggregation with the rigid-body near null space,
+#: Chebyshev/Jacobi smoothing (diagonal scaling: each row sees its own stiffness, so the bone's
+#: 10⁷ larger entries do not swamp the tissue's), a square graph on the finest level.
+_GAMG = {
+    "pc_type": "gamg",
+    "pc_gamg_type": "agg",
+    "pc_gamg_threshold": 0.01,
+    "pc_gamg_square_graph": 1,
+    "mg_levels_ksp_type": "chebyshev",
+    "mg_levels_pc_type": "jacobi",
+    "mg_levels_ksp_max_it": 2,
+    "mg_coarse_ksp_type": "preonly",
+    "mg_coarse_pc_type": "lu",
+}
+
+
+def iterative_options(pressure: bool) -> dict:
+    """The Krylov configuration (PETSc options without prefix): a Schur field split over
+    (u, p) if the problem has a pressure, else GAMG on K alone."""
+    if not pressure:
+        return {**_KRYLOV, **_GAMG}
+    split = {
+        "pc_type": "fieldsplit",
+        "pc_fieldsplit_type": "schur",
+        "pc_fieldsplit_schur_fact_type": "full",
+        "fieldsplit_u_ksp_type": "preonly",
+        "fieldsplit_p_ksp_type": "preonly",
+        "fieldsplit_p_pc_type": "gamg",
+    }
+    split |= {f"fieldsplit_u_{k}": v for k, v in _GAMG.items()}
+    return {**_KRYLOV, **split}
+
+
+def options(linear: str, pressure: bool) -> dict:
+    """The PETSc options of the linear solver `linear` ("direct" or "iterative")."""
+    check_linear(linear)
+    return dict(DIRECT_OPTIONS) if linear == "direct" else iterative_options(pressure)
+
+
+def check_linear(linear, where: str = "solver.linear") -> str:
+    if linear not in LINEAR:
+        raise InputError(where, f"{linear!r} is not a linear solver.",
+                         f"use one of {', '.join(repr(k) for k in LINEAR)}.")
+    return linear
+
+
+def rigid_body_modes(V: fem.FunctionSpace) -> PETSc.NullSpace:
+    """The rigid-body motions of the vector space V as an orthonormal PETSc near null space:
+    gdim translations and gdim(gdim − 1)/2 rotations (3 in 2D, 6 in 3D), on the owned dofs
+    (interleaved, block size gdim), as GAMG needs them to build its coarse spaces."""
+    gdim = V.mesh.geometry.dim
+    bs = V.dofmap.index_map_bs
+    n = V.dofmap.index_map.size_local
+    x = V.tabulate_dof_coordinates()[:n, :gdim]
+    x = x - V.mesh.comm.allreduce(x.sum(axis=0), op=MPI.SUM) / max(
+        V.dofmap.index_map.size_global, 1)  # about the centroid: better conditioned
+    modes = []
+    for i in range(gdim):
+        m = np.zeros((n, bs))
+        m[:, i] = 1.0
+        modes.append(m)
+    for i, j in ((0, 1), (1, 2), (2, 0))[: 1 if gdim == 2 else 3]:
+        m = np.zeros((n, bs))  # rotation in the (i, j) plane: (−x_j, x_i)
+        m[:, i], m[:, j] = -x[:, j], x[:, i]
+        modes.append(m)
+    vectors = []
+    for m in modes:
+        v = PETSc.Vec().createMPI((n * bs, PETSc.DECIDE), bsize=bs, comm=V.mesh.comm)
+        v.array[:] = m.ravel()
+        vectors.append(v)
+    _gram_schmidt(vectors)
+    return PETSc.NullSpace().create(vectors=vectors, comm=V.mesh.comm)
+
+
+def _gram_schmidt(vectors: list) -> None:
+    for i, v in enumerate(vectors):
+        for w in vectors[:i]:
+            v.axpy(-v.dot(w), w)
+        v.normalize()
+
+
+def split_index_sets(unknowns: list[fem.Function], A: PETSc.Mat) -> list[PETSc.IS]:
+    """The global index sets of each unknown's rows in the block ("mpi" kind) matrix A: on each
+    rank its owned dofs of u, then of p, from the start of the rank's rows."""
+    start = A.getOwnershipRange()[0]
+    sets = []
+    for f in unknowns:
+        index_map, bs = f.function_space.dofmap.index_map, f.function_space.dofmap.index_map_bs
+        size = index_map.size_local * bs
+        iset = PETSc.IS().createStride(size, first=start, step=1, comm=A.comm)
+        iset.setBlockSize(bs)
+        sets.append(iset)
+        start += size
+    return sets
+
+
+class LinearSolver:
+    """Configures a dolfinx NonlinearProblem's KSP for `linear` ("direct" or "iterative"):
+    the options (`options`, to merge under the user's), then `attach` the split's index sets
+    and the near null space once the problem exists."""
+
+    def __init__(self, linear: str, problem):
+        self.linear = check_linear(linear)
+        self.problem = problem
+        self.unknowns = list(problem.unknowns)
+        self.pressure = len(self.unknowns) > 1
+        self.options = options(linear, self.pressure)
+        self._objects: list = []
+
+    def attach(self, nonlinear, prefix: str, petsc_options: dict) -> None:
+        """Give the Krylov solver what it cannot read from options: the fields' index sets and
+        the rigid-body modes. PCFIELDSPLIT reads its sub-solvers' options when it first sets up
+        (at the first Newton step, after NonlinearProblem has cleared its options), so those
+        stay in the options database under `prefix` until `release`."""
+        if self.linear == "direct":
+            return
+        self._prefix = prefix
+        self._keys = [k for k in petsc_options if k.startswith("fieldsplit_")
+                      or k.startswith("mg_")]
+        db = PETSc.Options()
+        for k in self._keys:
+            db[prefix + k] = petsc_options[k]
+        A = nonlinear.A
+        modes = rigid_body_modes(self.unknowns[0].function_space)
+        self._objects.append(modes)
+        pc = nonlinear.solver.getKSP().getPC()
+        if self.pressure:
+            sets = split_index_sets(self.unknowns, A)
+            sets[0].compose("nearnullspace", modes)
+            pc.setFieldSplitIS(("u", sets[0]), ("p", sets[1]))
+            self._objects += sets
+            self._schur_preconditioner(nonlinear, pc, sets[1])
+        else:
+            A.setBlockSize(self.unknowns[0].function_space.dofmap.index_map_bs)
+            A.setNearNullSpace(modes)
+
+    def _schur_preconditioner(self, nonlinear, pc, is_p: PETSc.IS) -> None:
+        """S_p = J_pp + M/m for the pressure Schur complement S = J_pp + B K⁻¹ Bᵀ: B K⁻¹ Bᵀ of
+        a solid of P-wave modulus m = λ + 2μ is close to M/m (M the pressure mass matrix:
+        exact for the divergence of a periodic elastic field), J_pp the Darcy block as
+        assembled (Δt J k C⁻¹ Grad p·Grad q; none undrained). Refreshed with each Jacobian."""
+        Q = self.unknowns[1].function_space
+        p, q = ufl.TrialFunction(Q), ufl.TestFunction(Q)
+        modulus = pressure_modulus(self.problem)
+        M = fem.petsc.assemble_matrix(fem.form(ufl.inner(p, q) / modulus * ufl.dx(Q.mesh)))
+        M.assemble()
+        self._M, self._Sp, self._App = M, M.duplicate(copy=True), None
+        self._objects += [M, self._Sp]
+        pc.setFieldSplitSchurPreType(PETSc.PC.FieldSplitSchurPreType.USER, self._Sp)
+        snes = nonlinear.solver
+        J, P, (jacobian, args, kargs) = snes.getJacobian()
+
+        def refresh(snes, x, J_, P_):
+            jacobian(snes, x, J_, P_, *args, **(kargs or {}))
+            self._App = P_.createSubMatrix(is_p, is_p, self._App)
+            self._M.copy(self._Sp, structure=PETSc.Mat.Structure.SAME_NONZERO_PATTERN)
+            self._Sp.axpy(1.0, self._App, structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
+
+        snes.setJacobian(refresh, J, P)
+
+    def release(self) -> None:
+        """Remove the options this solver left in the database, destroy its PETSc objects."""
+        db = PETSc.Options()
+        for k in getattr(self, "_keys", []):
+            db.delValue(self._prefix + k)
+        for obj in self._objects:
+            obj.destroy()
+        self._objects = []
+
+
+def pressure_modulus(problem) -> float:
+    """The P-wave modulus λ + 2μ (MPa) of the subcutaneous solid at rest (the region that carries
+    the pore pressure), from the problem's laws."""
+    return float(problem.laws.regions["subcutaneous"].p_wave_modulus)
+
+
+def krylov_iterations(snes: PETSc.SNES) -> int:
+    """The Krylov iterations of the last SNES solve (all Newton steps)."""
+    return snes.getLinearSolveIterations()
+

@@ -1,0 +1,164 @@
+"""The linear solvers inside Newton (linear_solvers.py): the iterative route (FGMRES, Schur field
+split, GAMG with the rigid-body near null space) against MUMPS on a coarse fingertip; its
+Krylov iterations under refinement; 1 against 2 ranks; the near null space itself in 2D and 3D.
+The 4x finer fingertip comparison is benchmarks/iterative_solver.py (too slow for a test)."""
+
+from types import SimpleNamespace
+
+import dolfinx.fem.petsc
+import numpy as np
+import pytest
+import ufl
+from dolfinx import fem, mesh
+from mpi4py import MPI
+
+from fingertip_dolfinx.errors import InputError
+from fingertip_dolfinx.linear_solvers import LinearSolver, rigid_body_modes
+from fingertip_dolfinx.mesh import build_mesh
+from fingertip_dolfinx.problem import FingertipProblem
+from fingertip_dolfinx.scene import load_scene, scene_record
+from fingertip_dolfinx.solver import StepOptions, TimeStepper
+
+#: A coarse 1pt fingertip (biphasic subcutaneous tissue: the (u, p) split), bone and nail rigid:
+#: the iterative route's recommended model (elastic bone: see the benchmark).
+COARSE = {"section.mesh.min_size": 0.4, "section.mesh.max_size": 2.0,
+          "section.mesh.bone_size": 4.0, "model.rigid_bone": True}
+#: Two steps of 0.05 s of the ramp (0.1 mm deep).
+STEPS = StepOptions(dt_initial=0.05, dt_min=0.05, dt_max=0.05, max_cuts=0)
+
+
+def _press(linear: str, comm=MPI.COMM_WORLD, h: float | None = None):
+    """The coarse fingertip pressed two steps with `linear`: (problem, stepper, Newton its)."""
+    sizes = dict(COARSE)
+    if h is not None:
+        sizes |= {"section.mesh.min_size": h, "section.mesh.max_size": 5 * h,
+                  "section.mesh.bone_size": 10 * h}
+    scene = load_scene("1pt", [f"{k}={str(v).lower()}" for k, v in sizes.items()])
+    problem = FingertipProblem(build_mesh(scene.section, comm), scene.indenters, scene.history,
+                               scene.materials, scene.model)
+    stepper = TimeStepper(problem, STEPS, scene.petsc_options, prefix=f"lin_{linear}_",
+                          linear=linear)
+    newton = sum(r.newton_iterations for r in stepper.run(scene.history, 0.1))
+    return problem, stepper, newton
+
+
+def _last_update(stepper) -> float:
+    """∞-norm of Newton's last correction: Newton's error after it is at most about this (it
+    converges superlinearly: the next correction, the remaining error, is far smaller)."""
+    return stepper.snes.getSolutionUpdate().norm(norm_type=3)  # NORM_INFINITY
+
+
+def test_iterative_equals_direct():
+    """The iterative and the direct solution lie within the sum of their last Newton
+    corrections: both are Newton's answer to the same residual tolerance."""
+    solutions, bounds = [], []
+    for linear in ("direct", "iterative"):
+        problem, stepper, _ = _press(linear)
+        solutions.append(np.concatenate([f.x.array for f in problem.unknowns]))
+        bounds.append(_last_update(stepper))
+        stepper.close()
+    assert np.max(np.abs(solutions[0])) > 1e-3  # mm: pressed
+    assert np.max(np.abs(solutions[1] - solutions[0])) <= sum(bounds)
+
+
+@pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="serial: meshes of two sizes")
+def test_krylov_iterations_within_a_factor_two_at_half_the_size():
+    """Krylov iterations per Newton step on the coarse mesh and on one of half the element
+    size (about 3x the dofs) stay within a factor 2 (h-independent preconditioner)."""
+    per_newton = []
+    for h in (0.4, 0.2):
+        _, stepper, newton = _press("iterative", h=h)
+        per_newton.append(stepper.linear_iterations / newton)
+        stepper.close()
+    assert per_newton[1] <= 2 * per_newton[0]
+
+
+@pytest.mark.mpi
+def test_one_and_two_ranks_agree():
+    """The iterative solve on all ranks against the same mesh solved on each rank alone
+    (COMM_SELF): max |u| and the force agree within the sum of the last Newton corrections
+    (max |u| moves by at most the largest change of u)."""
+    results = []
+    for comm in (MPI.COMM_SELF, MPI.COMM_WORLD):
+        problem, stepper, _ = _press("iterative", comm)
+        u = problem.u.x.array
+        results.append((comm.allreduce(np.max(np.abs(u)), op=MPI.MAX), _last_update(stepper)))
+        stepper.close()
+    (u1, d1), (u2, d2) = results
+    assert u1 > 1e-3
+    assert abs(u1 - u2) <= d1 + d2
+
+
+def _elastic_block(msh, clamp: bool):
+    """Linear elasticity (E = 1, ν = 0.3) on `msh`, clamped on x = 0 if `clamp`, pulled by a
+    body force; as a NonlinearProblem (one Newton step solves it)."""
+    gdim = msh.geometry.dim
+    V = fem.functionspace(msh, ("Lagrange", 1, (gdim,)))
+    u, v = fem.Function(V), ufl.TestFunction(V)
+    lmbda, mu = 0.3 / (1.3 * 0.4), 1 / 2.6
+    eps = ufl.sym(ufl.grad(u))
+    sigma = lmbda * ufl.tr(eps) * ufl.Identity(gdim) + 2 * mu * eps
+    f = ufl.as_vector([0.0] * (gdim - 1) + [-1.0])
+    R = ufl.inner(sigma, ufl.grad(v)) * ufl.dx - ufl.inner(f, v) * ufl.dx
+    bcs = []
+    if clamp:
+        facets = mesh.locate_entities_boundary(msh, gdim - 1, lambda x: np.isclose(x[0], 0))
+        dofs = fem.locate_dofs_topological(V, gdim - 1, facets)
+        bcs = [fem.dirichletbc(np.zeros(gdim), dofs, V)]
+    return u, R, bcs
+
+
+@pytest.mark.parametrize("gdim", [2, 3])
+def test_rigid_body_modes_are_the_kernel_of_elasticity(gdim):
+    """The near null space (3 modes in 2D, 6 in 3D) is orthonormal and the unclamped stiffness
+    maps each mode to zero (round-off: 1e-12 of ‖K‖)."""
+    comm = MPI.COMM_WORLD
+    msh = (mesh.create_unit_square(comm, 4, 4) if gdim == 2
+           else mesh.create_unit_cube(comm, 3, 3, 3))
+    u, R, _ = _elastic_block(msh, clamp=False)
+    K = dolfinx.fem.petsc.assemble_matrix(fem.form(ufl.derivative(R, u)))
+    K.assemble()
+    space = rigid_body_modes(u.function_space)
+    modes = space.getVecs()
+    assert len(modes) == 3 * (gdim - 1)
+    gram = np.array([[a.dot(b) for b in modes] for a in modes])
+    np.testing.assert_allclose(gram, np.eye(len(modes)), atol=1e-12)
+    assert space.test(K)  # PETSc's own check: ‖K z‖ small for every z
+    Kz = K.createVecLeft()
+    for z in modes:
+        K.mult(z, Kz)
+        assert Kz.norm() <= 1e-12 * K.norm()
+
+
+def _gamg_iterations(n: int) -> int:
+    msh = mesh.create_box(MPI.COMM_WORLD, [[0, 0, 0], [4, 1, 1]], [4 * n, n, n])
+    u, R, bcs = _elastic_block(msh, clamp=True)
+    linear = LinearSolver("iterative", SimpleNamespace(unknowns=[u]))
+    problem = dolfinx.fem.petsc.NonlinearProblem(
+        R, u, bcs=bcs, petsc_options_prefix=f"box{n}_",
+        petsc_options={"snes_type": "ksponly", **linear.options})
+    linear.attach(problem, f"box{n}_", linear.options)
+    problem.solve()
+    assert problem.solver.getConvergedReason() > 0
+    its = problem.solver.getLinearSolveIterations()
+    linear.release()
+    return its
+
+
+def test_gamg_iterations_bounded_on_a_3d_box():
+    """GAMG with the 6 rigid-body modes on a clamped 3D elastic bar: the Krylov iterations of
+    the mesh of twice the cells per direction (8x the dofs) are within 2x those of the coarse."""
+    coarse, fine = _gamg_iterations(2), _gamg_iterations(4)
+    assert fine <= 2 * coarse
+
+
+def test_scene_chooses_the_linear_solver():
+    scene = load_scene("1pt")
+    assert scene.linear == "direct"
+    assert scene_record(scene)["solver"]["linear"] == "direct"
+    scene = load_scene("line-load", ["solver.linear=iterative", "solver.petsc_options.ksp_rtol=1e-9"])
+    assert scene.linear == "iterative"
+    assert scene.petsc_options == {"snes_atol": 1e-9, "ksp_rtol": 1e-9}
+    with pytest.raises(InputError) as error:
+        load_scene("1pt", ["solver.linear=cg"])
+    assert "solver.linear" in error.value.where and "'iterative'" in error.value.fix
