@@ -12,6 +12,7 @@ Run it serially and under `mpiexec -n 2` for the rank comparison:
 """
 
 import argparse
+import re
 import time
 
 import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
@@ -42,7 +43,8 @@ def run(h: float, linear: str, bone: str, comm) -> dict:
     try:
         reports = stepper.run(scene.history, 0.1)
     except ConvergenceError as error:
-        row["failed"] = str(error).split(":")[2][:60]
+        reason = re.search(r"\((\w+)\)", str(error))  # SNES's reason, e.g. DIVERGED_MAX_IT
+        row["failed"] = reason.group(1) if reason else str(error)[:60]
         stepper.close()
         return row
     newton = sum(r.newton_iterations for r in reports)

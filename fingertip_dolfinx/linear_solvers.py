@@ -3,16 +3,34 @@
 Every Newton step solves J δ = −R with J the Jacobian of the coupled problem: the displacement
 block K (all regions) and, with a pore law, the pore pressure p on the subcutaneous submesh,
 
-    J = [ K   Bᵀ ]      K: elasticity + contact,  B: −∫ q J F⁻ᵀ : Grad δu (the mass balance),
-        [ B  −C  ]      C: Δt J k C⁻¹ Grad p · Grad q (biphasic; 0 undrained).
+    J = [ K  −Bᵀ ]      K: elasticity + contact,  B: ∫ q J F⁻ᵀ : Grad δu (the mass balance),
+        [ B   C  ]      C: Δt J k C⁻¹ Grad p · Grad q (biphasic; 0 undrained).
 
-"direct" (the default): MUMPS LU of the whole of J; exact, robust, memory ~ n^1.5 in 2D.
+"direct" (the default): MUMPS LU of the whole of J; exact, robust; in 2D work ~ n^1.5, memory ~ n log n.
 "iterative": FGMRES preconditioned by a Schur-complement field split (PETSc PCFIELDSPLIT):
 K by smoothed-aggregation algebraic multigrid (GAMG, told the rigid-body modes of the
 displacement space: its near null space) and the pressure Schur complement
-S = −C − B K⁻¹ Bᵀ by GAMG on its "selfp" approximation −C − B diag(K)⁻¹ Bᵀ. Without a pore
-law the split has nothing to do: CG is not safe (contact makes K non-symmetric: Nitsche θ = 0),
-so GMRES with GAMG on K.
+S = C + B K⁻¹ Bᵀ by GAMG on S_p = C + M/(λ + 2μ) (M the pressure mass matrix, λ + 2μ the
+subcutaneous solid's P-wave modulus; C as assembled), "full" factorisation. Measured at h =
+0.4 mm, bone rigid, Krylov iterations per Newton step: S_p 33, PETSc's "selfp"
+(C + B diag(K)⁻¹ Bᵀ) 170 with GAMG and 50 with Jacobi on it; "lower" instead of "full" 47;
+Jacobi instead of GAMG on S_p 40. Without a pore law there is no split: FGMRES with GAMG on K
+(CG is not safe: contact makes K non-symmetric, Nitsche θ = 0).
+
+Measured (benchmarks/iterative_solver.py; 1pt fingertip, biphasic, two 0.05 s steps of the
+ramp, P2/P1, ksp_rtol 1e-10): bone and nail rigid (`model.rigid_bone = true`), Krylov
+iterations per Newton step 31, 39, 55 at h = 0.4, 0.2, 0.1 mm (2.3k, 6.6k, 22k dofs: 1.8x from
+the coarse to the 4x finer mesh), force equal to MUMPS's to 1e-10; 1 and 2 ranks 31 and 30.
+The stiff regions: the 17 GPa bone is not what hurts GAMG (Jacobi-scaled Chebyshev smoothing
+and the strength threshold keep its 10⁷ larger entries apart from the tissue's): with the bone
+rigid but the nail elastic, 95 per Newton step at h = 0.2; with the nail rigid but the bone
+elastic, 39 (as both rigid, 39). The thin 170 MPa nail plate is: its bending is poorly
+represented on GAMG's coarse aggregates (both elastic: 186, 110 per Newton step at h = 0.4,
+0.2, and over 400 in some solves at h = 0.1). A threshold of 0.1 helped elastic (65 at 0.2) but
+failed with both rigid; 0.01 is kept. So the iterative route is meant for rigid bone and nail
+(the clamp moves from the nail centre to their nodes: at h = 0.2 the force changes by 2 % at
+0.1 mm); with them elastic it converges on coarse meshes, slowly. MUMPS stays the default: in
+2D it is 3-5x faster at these sizes (LU fill ~ n log n); the Krylov route is for 3D.
 
 Both are chosen by scene data (`[solver] linear = "direct" | "iterative"`); any PETSc option
 given in `[solver]` overrides the configuration's (under the stepper's prefix:
@@ -44,7 +62,7 @@ DIRECT_OPTIONS = {
     "pc_factor_mat_solver_type": "mumps",
 }
 
-#: The Krylov tolerance. Newton's own tolerances (snes_rtol 1e-9, snes_atol 1e-10 N/mm) need
+#: The Krylov tolerance (relative, unpreconditioned residual). Newton's own tolerances (snes_rtol 1e-9, snes_atol 1e-10 N/mm) need
 #: each linear solve to reduce its residual further than Newton's quadratic rate would:
 #: an inexact Newton step with relative tolerance η converges linearly at rate η.
 KSP_RTOL = 1e-10
@@ -61,7 +79,9 @@ _KRYLOV = {
 
 #: GAMG on the displacement block: smoothed aggregation with the rigid-body near null space,
 #: Chebyshev/Jacobi smoothing (diagonal scaling: each row sees its own stiffness, so the bone's
-#: 10⁷ larger entries do not swamp the tissue's), a square graph on the finest level.
+#: 10⁷ larger entries do not swamp the tissue's), a square graph on the finest level. The
+#: threshold 0.01 drops the weak tissue-bone couplings from the aggregation graph; 0.1 failed
+#: (400 iterations) at h = 0.2 mm with bone and nail rigid.
 _GAMG = {
     "pc_type": "gamg",
     "pc_gamg_type": "agg",
