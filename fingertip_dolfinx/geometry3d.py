@@ -309,7 +309,11 @@ def _fingertip_from_dict(data: dict, name: str) -> Fingertip3D:
         raise InputError("dimension", "a 3D fingertip file must say dimension = 3.",
                          "add the line dimension = 3 at the top (before any [table]).")
     top = {"half": data.pop("half")} if "half" in data else {}
-    check_keys("section file", data, _KEYS_2D, what="table")
+    unknown = sorted(set(data) - set(_KEYS_2D))
+    if unknown:
+        raise InputError(", ".join(unknown), "unknown table(s) or key(s) of a 3D fingertip file "
+                         "(in 3D the pulp is always the palmar half, y < 0).",
+                         f"use only dimension, half and [{'], ['.join(_KEYS_2D)}].")
     flat, kwargs = {}, {}
     for table, values in data.items():
         allowed = [*_KEYS_2D[table], *_KEYS_3D.get(table, {})]

@@ -226,7 +226,8 @@ def _classify_faces(tip: Fingertip3D, regions: dict[str, list[int]]) -> dict[str
         elif abs(z) < tol and z1 - z0 < FLAT:
             name = "proximal_cut"
         elif sides == ["skin"]:
-            name = "pulp_surface" if y < 0 else "outer_surface"
+            # (the flat disc closing the cap's loft at its apex straddles y = 0: outer_surface)
+            name = "pulp_surface" if y < -FLAT else "outer_surface"
         elif sides == ["nail"]:
             on_top = (abs(x) < tip.section.nail.centre_half_width and y > tip.outer.b
                       and z1 - z0 > FLAT)  # not the strip's ends (z = start_z, end_z)
