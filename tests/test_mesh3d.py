@@ -2,6 +2,7 @@
 their closed forms (geometry3d.Fingertip3D.exact_volumes), the half model, and the distributed
 mesh. Coarse meshes (h = 1.6 and 0.8 mm: ~4 and ~7 s each)."""
 
+import json
 import math
 
 import numpy as np
@@ -138,3 +139,19 @@ def test_the_distributed_mesh_has_the_serial_volume_and_cells(full):
     whole = fm.mesh.comm.allreduce(fem.assemble_scalar(fem.form(one * ufl.dx(fm.mesh))), MPI.SUM)
     assert whole == pytest.approx(total, rel=1e-12)  # the regions cover the mesh
     assert math.isclose(total, sum(tip.exact_volumes().values()), rel_tol=1e-2)
+
+
+def test_the_mesh_command_picks_3d_by_the_file_and_writes_readable_tags(tmp_path):
+    from fingertip_dolfinx.cli import main
+    from fingertip_dolfinx.mesh import read_xdmf
+
+    out = tmp_path / "mesh3d"
+    assert main(["mesh", "--section", "male-index-3d", "--min-size", "1.6", "--max-size", "1.6",
+                 "--out", str(out)]) == 0
+    for name in ("mesh.xdmf", "mesh.h5", "mesh.png", "mesh_report.json"):
+        assert (out / name).stat().st_size > 0, name
+    report = json.loads((out / "mesh_report.json").read_text())
+    assert report["mesh"]["cell_type"] == "tetrahedron" and report["options"]["min_size"] == 1.6
+    back = read_xdmf(out / "mesh.xdmf", MPI.COMM_SELF)
+    assert back.mesh.geometry.dim == 3 and back.names == report["tags"]
+    assert main(["mesh", "--section", "male-index-3d", "--quad", "--out", str(out)]) == 2
