@@ -86,12 +86,10 @@ class Fingertip3D:
     # --- validation, one check (and one message) per kind of mistake ---
 
     def _check_numbers(self):
-        for key, attr in [("outer.cylinder_length", "cylinder_length"),
-                          ("outer.tip_length", "tip_length"), ("bone.length", "bone_length"),
-                          ("bone.taper", "bone_taper"), ("bone.end_length", "bone_end_length")]:
-            positive(key, getattr(self, attr), "" if attr == "bone_taper" else "mm")
-        for key in ("nail.start_z", "nail.end_z", "mesh.refine_z_min", "mesh.refine_z_max"):
-            number(key, getattr(self, _KEYS_3D[key.split(".")[0]][key.split(".")[1]]))
+        for table, keys in _KEYS_3D.items():
+            for key, attr in keys.items():
+                check = positive if table in ("outer", "bone") else number
+                check(f"{table}.{key}", getattr(self, attr))
         if not isinstance(self.half, bool):
             raise InputError("half", f"must be true or false, got {self.half!r}.",
                              "write half = true (x >= 0 only) or half = false.")
@@ -138,11 +136,12 @@ class Fingertip3D:
         if not 0.0 <= z0 < z1:
             raise InputError("nail.start_z", f"must satisfy 0 <= nail.start_z < nail.end_z, got "
                              f"{z0} and {z1} mm.", "use e.g. start_z = 3, end_z = 14.")
-        if not z1 <= self.cylinder_length:
-            raise InputError("nail.end_z", f"{z1} mm is beyond the cylindrical part, which "
-                             f"ends at outer.cylinder_length = {self.cylinder_length} mm: the "
+        # (A nail ending exactly where the cap starts left a face gmsh could not mesh.)
+        if not z1 < self.cylinder_length:
+            raise InputError("nail.end_z", f"{z1} mm is not before the end of the cylindrical "
+                             f"part at outer.cylinder_length = {self.cylinder_length} mm: the "
                              "nail plate lies on the cylinder only.",
-                             "use end_z <= outer.cylinder_length.")
+                             "use end_z < outer.cylinder_length.")
 
     def _check_refinement_zone(self):
         z0, z1, w = self.refine_z_min, self.refine_z_max, self.section.mesh.refine_half_width
@@ -272,6 +271,28 @@ def half_ellipsoid_area_and_mean_curvature(a: float, b: float, c: float, n: int 
     mean = h**3 * (a * a + b * b + c * c - (p**2).sum(axis=0)) / (2 * a * a * b * b * c * c)
     weights = np.outer(wt, wp)
     return float((weights * jac).sum()), float((weights * jac * mean).sum())
+
+
+def ellipsoid_distance(points, axes, iterations: int = 200) -> np.ndarray:
+    """Distance from points (n, 3) (relative to the centre) to the ellipsoid of semi-axes
+    `axes`, to round-off.
+
+    The nearest point is q_i = a_i^2 p_i / (s + a_i^2) for the largest root s > -min(a_i^2) of
+    sum_i (a_i p_i / (s + a_i^2))^2 = 1 (Eberly, "Distance from a point to an ellipse, an
+    ellipsoid, or a hyperellipsoid", 2013); the sum falls monotonically there: bisection.
+    Points on the plane of the shortest axis (p_i = 0 for it) are not handled.
+    """
+    p = np.atleast_2d(np.asarray(points, dtype=float))
+    a2 = np.asarray(axes, dtype=float) ** 2
+    f = lambda s: (((np.sqrt(a2) * p) / (s[:, None] + a2)) ** 2).sum(axis=1) - 1.0  # noqa: E731
+    lo = np.full(len(p), -a2.min() * (1 - 1e-15))
+    hi = 2.0 * np.sqrt(a2.max()) * np.linalg.norm(p, axis=1) + 1.0
+    for _ in range(iterations):
+        mid = 0.5 * (lo + hi)
+        above = f(mid) > 0.0
+        lo, hi = np.where(above, mid, lo), np.where(above, hi, mid)
+    root = 0.5 * (lo + hi)
+    return np.linalg.norm(p - a2 * p / (root[:, None] + a2), axis=1)
 
 
 # --- reading TOML ---

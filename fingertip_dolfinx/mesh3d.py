@@ -1,22 +1,28 @@
 """The gmsh (OpenCASCADE) model of a 3D fingertip (`geometry3d.Fingertip3D`) -> DOLFINx mesh of
 tetrahedra with the cell and facet tags of `mesh.CELL_TAGS` and `mesh.FACET_TAGS_3D`.
 
-What is exact and what is approximate (all CAD; the mesh's vertices lie on these surfaces):
-- outer surface: the elliptic cylinder and the half-ellipsoid (a dilated sphere), exact;
-- skin's inner surface: on the cylinder, the extrusion of the section's inward offset curve
-  (OpenCASCADE's exact parallel curve, as in 2D), exact; on the cap, a smooth loft
-  (`addThruSections`) through copies of that offset curve scaled by cos(alpha) at heights
-  z = L + (c - t) sin(alpha), closed by a flat disc at alpha = 88 deg (the same construction
-  gives the exact inner sphere when a = b = c). OpenCASCADE's own offset (`addThickSolid`)
-  fails on the ellipsoid ("Could not build thick solid", gmsh 4.15, also on the half- and full
-  ellipsoid alone). Measured thickness on the cap of the built-in finger: 0.798-0.8006 mm on
-  the loft, 0.796-0.804 mm on the flat disc (`cap_skin_thickness`);
-- bone: a ruled loft between the two ellipses (an exact elliptic-cone frustum) and a
-  half-ellipsoid end, exact;
-- nail: the 2D nail plate (mesh._add_nail) extruded along z, exact.
-The skin is split at y = 0 (pulp_surface: its palmar outer face, cylinder and cap) and the nail
-at |x| = nail.centre_half_width (nail_centre: the strip's top face), so every tag is a union
-of whole CAD faces. gmsh runs on rank 0 only; `dolfinx.io.gmsh.model_to_mesh` distributes.
+What is exact and what is approximate (the CAD; the mesh's vertices lie on these surfaces):
+- on the cylindrical part (0 <= z <= L) everything is exact: the outer elliptic cylinder; the
+  skin's inner surface, the extrusion of the section's inward offset curve (OpenCASCADE's
+  exact parallel curve, as in 2D); the bone, a ruled loft between two ellipses (an exact
+  elliptic-cone frustum); the nail, the 2D nail plate (mesh._add_nail) extruded along z;
+- the rounded ends (the outer tip cap, the skin's inner cap, the bone's end) are lofts
+  (`_dome`, `addThruSections`) through exact copies of the cross-section scaled by cos(alpha)
+  at z0 + length sin(alpha), alpha = 0 .. 88 deg, closed by a flat disc: the sections of the
+  outer cap lie on the half-ellipsoid (a, b, c), those of the inner cap on the half-ellipsoid's
+  inward parallel surface only where a = b = c. Measured on the built-in fingertip
+  (`cap_deviations`): the outer cap is within 5.8e-3 mm of the half-ellipsoid, the skin on
+  the cap is 0.798-0.804 mm thick (0.8 ideal).
+  Why lofts: OpenCASCADE's offset (`addThickSolid`) fails on an ellipsoid ("Could not build
+  thick solid", gmsh 4.15, also on the half- and full ellipsoid alone), and a dilated sphere
+  (the exact ellipsoid) has its poles and seam where the model is split (x = 0, y = 0), which
+  broke the booleans or the surface meshing. The skin's surfaces are made of faces that end on
+  the planes x = 0 and y = 0 (`_quarter_arcs`; the offset curve comes in such arcs), so neither
+  the pulp nor the half model cuts through one of them.
+The outer skin faces end on y = 0 (pulp_surface: the palmar ones, cylinder and cap; the apex
+disc, radius a cos 88 deg = 0.28 mm, is outer_surface) and the nail is split at |x| =
+nail.centre_half_width (nail_centre: the strip's top face), so every tag is a union of whole
+CAD faces. gmsh runs on rank 0 only; `dolfinx.io.gmsh.model_to_mesh` distributes.
 """
 
 from __future__ import annotations
@@ -35,16 +41,18 @@ from mpi4py import MPI
 import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
 
 from .geometry import Ellipse
-from .geometry3d import Fingertip3D
+from .geometry3d import Fingertip3D, ellipsoid_distance
 from .mesh import (CELL_TAGS, FACET_TAGS_3D, SIZE_GROWTH, FingertipMesh, MeshReport, _add_nail,
                    _ellipse_curve, _ellipse_loop, _gmsh_model, region_areas)
 
-#: Sections of the loft of the skin's inner cap, at alpha = 0 .. CAP_LAST_ANGLE (deg); the
-#: measured thickness error was 0.2 % with 12 (see the module's docstring).
+#: Sections of the lofted rounded ends (`_dome`), at alpha = 0 .. CAP_LAST_ANGLE (deg): with 12
+#: the skin on the cap is 0.798-0.804 mm thick (0.8 ideal; the module's docstring).
 CAP_SECTIONS = 12
 CAP_LAST_ANGLE = 88.0
 FLAT = 1e-2  # mm, see _classify_faces
-GLUE = 1e-2  # mm, tolerance of the fuzzy fuse of the inner cylinder and the loft
+#: mm, tolerance of the fuzzy fuse of a prism and its dome (`_glue`): 1e-3 left slivers
+#: between the outer cylinder and its dome, 1e-2 glued all three pairs.
+GLUE = 1e-2
 
 
 def build_mesh3d(tip: Fingertip3D, comm: MPI.Comm = MPI.COMM_WORLD,
@@ -151,8 +159,8 @@ def _dome(occ, curves, cy: float, z0: float, length: float) -> list[tuple[int, i
 
 def _glue(occ, prism, dome) -> list[tuple[int, int]]:
     """Fuse a prism and its dome. The loft approximates its sections by B-splines: its lower
-    edge lies ~1e-4 mm from the prism's top edge (measured: slivers of 1.5e-4 mm^2 between
-    them); a fuzzy fuse glues the two (gaps below GLUE are closed)."""
+    edge lies off the prism's top edge (measured: slivers of ~1.5e-4 mm^2 and 1.7e-4 mm^3
+    between them); a fuzzy fuse glues the two (gaps below GLUE are closed)."""
     fuzzy = gmsh.option.getNumber("Geometry.ToleranceBoolean")
     gmsh.option.setNumber("Geometry.ToleranceBoolean", GLUE)
     try:
@@ -295,6 +303,38 @@ def _report(seconds: float) -> MeshReport:
         max_edge=float(gmsh.model.mesh.getElementQualities(tags, "maxEdge").max()),
         seconds=seconds,
     )
+
+
+def cap_deviations(tip: Fingertip3D, samples: int = 30) -> dict[str, tuple[float, float]]:
+    """How far the lofted CAD of the tip cap is from the ideal shapes (mm; run on one rank).
+
+    Samples the cap's faces (z > cylinder_length) of the outer skin surface and of the skin's
+    inner surface; returns, as (min, max) over the samples, "outer": the distance of the outer
+    points to the half-ellipsoid (a, b, tip_length), and "skin_thickness": the distance of the
+    inner points to it (the ideal is the skin thickness everywhere).
+    """
+    L, axes = tip.cylinder_length, (tip.outer.a, tip.outer.b, tip.tip_length)
+    with _gmsh_model():
+        _, faces = add_geometry(tip)
+        outer = _sample(faces["pulp_surface"] + faces["outer_surface"], L, samples)
+        inner = _sample(faces["skin_subcutaneous"], L, samples)
+    centre = np.array([0.0, 0.0, L])
+    dist = {"outer": ellipsoid_distance(outer - centre, axes),
+            "skin_thickness": ellipsoid_distance(inner - centre, axes)}
+    return {k: (float(v.min()), float(v.max())) for k, v in dist.items()}
+
+
+def _sample(faces: list[int], z_min: float, n: int) -> np.ndarray:
+    """Points (m, 3) on a parameter grid of each face lying above z_min + GLUE."""
+    points = []
+    for face in faces:
+        lo, hi = gmsh.model.getParametrizationBounds(2, face)
+        uv = np.stack(np.meshgrid(*(np.linspace(lo[i], hi[i], n) for i in range(2))), -1)
+        uv = uv.reshape(-1, 2)
+        inside = [gmsh.model.isInside(2, face, list(q), parametric=True) for q in uv]
+        xyz = gmsh.model.getValue(2, face, uv[np.array(inside, bool)].ravel()).reshape(-1, 3)
+        points.append(xyz[xyz[:, 2] > z_min + GLUE])
+    return np.concatenate(points)
 
 
 def report_dict3d(fm: FingertipMesh, tip: Fingertip3D) -> dict:

@@ -84,7 +84,7 @@ def test_sampled_distance_to_the_outer_surface_is_within_its_stated_bound():
     ({"bone": {"end_length": 18.0}}, "bone.end_length", "not shorter"),
     ({"bone": {"centre_y": 4.5}}, "bone", "tissue"),  # the 2D section's check at z = 0
     ({"nail": {"half_angle": 95.0}}, "nail.half_angle", "between 0 and 90"),
-    ({"nail": {"end_z": 15.0}}, "nail.end_z", "cylindrical part"),
+    ({"nail": {"end_z": 14.0}}, "nail.end_z", "cylindrical part"),
     ({"nail": {"start_z": 14.0}}, "nail.start_z", "start_z < nail.end_z"),
     ({"mesh": {"min_size": 0.0}}, "mesh.min_size", "positive"),
     ({"mesh": {"max_size": 0.2}}, "mesh.max_size", "smaller than mesh.min_size"),
@@ -117,3 +117,15 @@ def test_the_half_model_halves_every_volume():
     v_full, v_half = full.exact_volumes(), half.exact_volumes()
     assert all(v_half[k] == pytest.approx(v_full[k] / 2, rel=1e-15) for k in v_full)
     assert dataclasses.replace(full, half=True).exact_volumes() == v_half
+
+
+def test_ellipsoid_distance_is_exact_on_spheres_and_at_the_apex():
+    from fingertip_dolfinx.geometry3d import ellipsoid_distance
+
+    p = np.array([[1.0, 2.0, 2.0], [0.3, -0.2, 6.5], [-4.0, 1.0, 8.0]])
+    assert ellipsoid_distance(p, (5.0, 5.0, 5.0)) == pytest.approx(
+        np.abs(5.0 - np.linalg.norm(p, axis=1)), rel=1e-12)
+    # Near the apex (0, 0, c), within its smallest radius of curvature b^2 / c, the apex is
+    # the nearest point (to second order in the offset from the axis).
+    assert ellipsoid_distance([[1e-6, 1e-6, 6.5]], (8.0, 7.0, 7.0))[0] == pytest.approx(0.5,
+                                                                                         rel=1e-9)
