@@ -451,3 +451,71 @@ def _colour_bar(plotter, mapper, label: str, shown):
     text = plotter.add_text(label, position=(0.52, 0.08), viewport=True, font_size=14,
                             color="black")
     text.GetTextProperty().SetJustificationToCentered()
+
+
+# --- the tagged 3D mesh -----------------------------------------------------------------------
+
+
+def plot_tagged_mesh3d(fm, path: Path, title: str | None = None) -> Path | None:
+    """A 3D mesh's tags in two views: the exposed surface coloured by facet tag (seen from the
+    palmar side), and the cells behind the mid-sagittal plane x = 0 coloured by region (seen
+    from -x: the layers skin, subcutaneous tissue, bone and nail in section).
+
+    Collective (every rank must call it); rank 0 writes `path` and returns it.
+    """
+    from .figures import FACET_COLOURS, REGION_COLOURS
+    from .mesh import CELL_TAGS, FACET_TAGS_3D
+
+    cells, cell_values = _gather_entities(fm, fm.cell_tags)
+    facets, facet_values = _gather_entities(fm, fm.facet_tags)
+    if fm.mesh.comm.rank != 0:
+        return None
+    colours = FACET_COLOURS | {"symmetry": "#bcbd22", "proximal_cut": "#e377c2"}
+    exposed = facet_values < 20  # tags 11-16; interfaces are 21-24
+    surface = _coloured(facets[exposed], pv.CellType.TRIANGLE, facet_values[exposed],
+                        {t: colours[n] for n, t in FACET_TAGS_3D.items()})
+    behind = cells[..., 0].mean(axis=1) >= 0.0  # cells with centroid x >= 0: a crinkled cut
+    section = _coloured(cells[behind], pv.CellType.TETRA, cell_values[behind],
+                        {t: REGION_COLOURS[n] for n, t in CELL_TAGS.items()})
+    plotter = pv.Plotter(off_screen=True, window_size=[1800, 900], shape=(1, 2))
+    plotter.add_mesh(surface, scalars="colour", rgb=True, show_edges=True, line_width=0.3)
+    plotter.view_vector((1.0, -0.35, 0.7), viewup=(0, 1, 0))  # the side (x > 0), pulp, tip
+    present = {n for n, t in FACET_TAGS_3D.items() if t in set(facet_values[exposed])}
+    plotter.add_legend([[n, colours[n]] for n in FACET_TAGS_3D if n in present], bcolor="white",
+                       size=(0.22, 0.22), loc="lower left")
+    plotter.add_text(title or "3D fingertip: boundary tags", font_size=11, position="upper_right")
+    plotter.subplot(0, 1)
+    plotter.add_mesh(section, scalars="colour", rgb=True, show_edges=True, line_width=0.3,
+                     lighting=False)
+    plotter.view_vector((-1.0, 0.0, 0.0), viewup=(0, 1, 0))
+    plotter.add_legend([[n, REGION_COLOURS[n]] for n in CELL_TAGS], bcolor="white",
+                       size=(0.18, 0.16), loc="lower left")
+    plotter.add_text("regions, cut at x = 0 (z: proximal cut -> tip)", font_size=11,
+                     position="upper_right")
+    plotter.screenshot(str(path))
+    plotter.close()
+    return Path(path)
+
+
+def _gather_entities(fm, tags) -> tuple[np.ndarray, np.ndarray]:
+    """(coordinates (n, k, 3), tag values) of the owned tagged entities, gathered on rank 0."""
+    mesh = fm.mesh
+    mesh.topology.create_connectivity(tags.dim, mesh.topology.dim)
+    owned = tags.indices < mesh.topology.index_map(tags.dim).size_local
+    nodes = dmesh.entities_to_geometry(mesh, tags.dim, tags.indices[owned])
+    gathered = mesh.comm.gather((mesh.geometry.x[nodes], tags.values[owned]), root=0)
+    if mesh.comm.rank != 0:
+        return np.empty((0, nodes.shape[1], 3)), np.empty(0, dtype=np.int32)
+    return np.concatenate([g[0] for g in gathered]), np.concatenate([g[1] for g in gathered])
+
+
+def _coloured(points: np.ndarray, vtk_type, values: np.ndarray, colour_of: dict):
+    """An unstructured grid of separate cells (points (n, k, 3)) with an RGB cell colour."""
+    from matplotlib.colors import to_rgb
+
+    n, k = points.shape[:2]
+    grid = pv.UnstructuredGrid({vtk_type: np.arange(n * k).reshape(n, k)},
+                               points.reshape(-1, 3))
+    rgb = np.array([to_rgb(colour_of[v]) for v in values]).reshape(-1, 3)
+    grid.cell_data["colour"] = (255 * rgb).astype(np.uint8)
+    return grid

@@ -396,6 +396,11 @@ def load_section(source: str | Path = "male-index", overrides: dict | None = Non
     """
     path = section_path(source)
     data = read_toml(path)
+    # A 3D fingertip file (geometry3d.py) says `dimension = 3`; a 2D one may say 2.
+    if data.pop("dimension", 2) != 2:
+        raise InputError(f"{path}, key dimension", "is not 2: this is a 3D fingertip file, "
+                         "not a 2D section.", "read it with geometry3d.load_fingertip3d "
+                         "(`fingertip mesh` picks by itself), or use a 2D section file.")
     for table, values in (overrides or {}).items():
         if not isinstance(values, dict):
             raise InputError(f"section.{table}", "must be a table.", f"write [section.{table}].")

@@ -42,6 +42,9 @@ FACET_TAGS = {
     "subcutaneous_nail": 23,  # only if the geometry makes them touch (not in the default one)
     "skin_nail": 24,  # the nail bed: the nail plate lies on the skin
 }
+#: A 3D mesh (mesh3d.py) has two more: the half model's mid-sagittal plane x = 0 and the plane
+#: z = 0 where the model is cut from the rest of the finger.
+FACET_TAGS_3D = FACET_TAGS | {"symmetry": 15, "proximal_cut": 16}
 # Size growth per unit distance away from the refinement zone (dh/dx): neighbouring elements
 # differ by about 30 %, gentle enough not to spoil the solution's accuracy.
 SIZE_GROWTH = 0.3
@@ -187,16 +190,19 @@ def _generate(section: Section, say: Callable[[str], None],
     return _report(section, time.perf_counter() - start)
 
 
-def _ellipse_loop(occ, e) -> int:
+def _ellipse_loop(occ, e, z: float = 0.0) -> int:
+    """The ellipse `e` as a closed curve loop in the plane at height z (3D models, mesh3d.py)."""
+    return occ.addCurveLoop([_ellipse_curve(occ, e, z)])
+
+
+def _ellipse_curve(occ, e, z: float = 0.0) -> int:
     # gmsh 4.15 segfaults offsetting an ellipse whose radii agree to ~1e-9: draw a circle.
     if abs(e.a - e.b) <= 1e-7 * max(e.a, e.b):
-        return occ.addCurveLoop([occ.addCircle(0.0, e.cy, 0.0, 0.5 * (e.a + e.b))])
+        return occ.addCircle(0.0, e.cy, z, 0.5 * (e.a + e.b))
     # OpenCASCADE wants the major radius first; a tall ellipse gets its major axis along y.
     if e.a >= e.b:
-        curve = occ.addEllipse(0.0, e.cy, 0.0, e.a, e.b)
-    else:
-        curve = occ.addEllipse(0.0, e.cy, 0.0, e.b, e.a, zAxis=[0, 0, 1], xAxis=[0, 1, 0])
-    return occ.addCurveLoop([curve])
+        return occ.addEllipse(0.0, e.cy, z, e.a, e.b)
+    return occ.addEllipse(0.0, e.cy, z, e.b, e.a, zAxis=[0, 0, 1], xAxis=[0, 1, 0])
 
 
 def _add_geometry(section: Section) -> tuple[dict[str, list[int]], dict[str, list[int]]]:
@@ -395,7 +401,7 @@ def read_xdmf(path: str | Path, comm: MPI.Comm = MPI.COMM_WORLD) -> FingertipMes
         cell_tags = f.read_meshtags(mesh, "cell_tags")
         facet_tags = f.read_meshtags(mesh, "facet_tags")
     present = set(comm.allreduce([*cell_tags.values, *facet_tags.values], op=MPI.SUM))
-    names = {n: t for n, t in (CELL_TAGS | FACET_TAGS).items() if t in present}
+    names = {n: t for n, t in (CELL_TAGS | FACET_TAGS_3D).items() if t in present}
     return FingertipMesh(mesh, cell_tags, facet_tags, names)
 
 

@@ -15,7 +15,7 @@ def _chain() -> dict[str, int]:
     text = DESIGN.read_text().split("## The chain of modules", 1)[1].split("\n## ", 1)[0]
     rank = {}
     for row, line in enumerate(l for l in text.splitlines() if l.startswith("| `")):
-        for name in re.findall(r"`([a-z_/]+)`", line.split("|")[1]):
+        for name in re.findall(r"`([a-z0-9_/]+)`", line.split("|")[1]):
             rank[name.rstrip("/")] = row
     return rank
 
