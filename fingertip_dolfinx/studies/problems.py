@@ -12,7 +12,9 @@ s, MPa; plane strain, so forces are per unit thickness (N/mm).
 - `Terzaghi`: the drained-top consolidation column and its exact pore pressure and settlement,
   after any time t (Terzaghi's series) and after one backward-Euler step.
 - `Hertz` and `HertzBlock`: a rigid cylinder pressed into a linear-elastic half block with
-  Nitsche contact, and the plane-strain Hertz half-width and peak pressure.
+  Nitsche contact, and the plane-strain Hertz half-width and peak pressure. `HertzSphere`: the
+  3D case, a rigid sphere on a quarter block (two symmetry planes), Hertz's contact radius and
+  peak pressure (forces in N).
 - `VibratingLayer`: a viscoelastic hyperfoam layer on a rigid base, laterally confined, its
   top shaken harmonically: the standing wave of uniaxial strain in closed form, the exact check
   of the frequency-domain route (`harmonic`: G*(ω), the mass, the real block form).
@@ -40,7 +42,7 @@ from .. import materials as mat
 from ..admissibility import Admissibility, Compaction
 from ..contact import NitscheContact, Obstacle, p_wave_modulus
 from ..harmonic import Linearisation, ViscousPart, complex_modulus, qlv_tangent
-from ..indenters import Cylinder
+from ..indenters import Cylinder, Sphere
 from ..inertia import Inertia
 from ..kinematics import deformation_gradient
 from ..loading import RampHold
@@ -900,6 +902,118 @@ class HertzBlock:
         X, p, s = (np.concatenate(comm.allgather(a)) for a in (X, p, s))
         order = np.argsort(X[:, 0], kind="stable")
         return X[order, 0], p[order], s[order]
+
+
+@dataclass(frozen=True)
+class HertzSphere(Hertz):
+    """A rigid sphere of radius R pressed by `depth` into the face y = 0 of a linear-elastic
+    block [0, L]³: a quarter model (symmetry u_x = 0 at x = 0 and u_z = 0 at z = 0, the top
+    y = L fixed), small strain, Nitsche contact; the sphere touches at the origin.
+
+    Hertz (Johnson, Contact Mechanics, §4.2, eqs. 4.22–4.23): for the whole sphere's force P
+    (N), E* = E/(1 − ν²), a = (3PR/(4E*))^(1/3), p0 = 3P/(2πa²), and the depth δ = a²/R. The
+    default a/R = 0.05 keeps the strains ~ a/R small; L = 20a: the finite block adds to the
+    depth a near-rigid shift (~ P/(E* L)) but, to first order, leaves the pressure under the
+    sphere, hence a(P) and p0(P), unchanged (measured: a and p0 move by < 0.5 % from L = 20a
+    to 40a, see benchmarks/hertz_sphere.py).
+    """
+
+    a_target: float = 0.05  # mm
+    depth: float = 0.0025  # mm: a_target²/R
+    L: float = 1.0  # mm
+    SYMMETRY_Z: ClassVar[int] = 4
+
+    def theory(self, force: float) -> tuple[float, float]:
+        """Hertz contact radius a (mm) and peak pressure p0 (MPa) for the whole sphere's force."""
+        a = (3 * force * self.R * (1 - self.nu**2) / (4 * self.E)) ** (1 / 3)
+        return a, 3 * force / (2 * math.pi * a**2)
+
+    def stress(self, u):
+        mu = self.E / (2 * (1 + self.nu))
+        lmbda = self.E * self.nu / ((1 + self.nu) * (1 - 2 * self.nu))
+        eps = ufl.sym(ufl.grad(u))
+        return lmbda * ufl.tr(eps) * ufl.Identity(3) + 2 * mu * eps
+
+    def mesh(self, h_contact: float, comm=MPI.COMM_SELF):
+        """The quarter block (gmsh tetrahedra on rank 0), graded from h_contact within
+        2 a_target of the origin to L/4 beyond L/2; returns (mesh, facet tags)."""
+        import gmsh
+        from dolfinx.io.gmsh import model_to_mesh
+
+        gmsh.initialize()
+        gmsh.option.setNumber("General.Terminal", 0)
+        if comm.rank == 0:
+            self._gmsh_box(gmsh)
+            self._gmsh_grading(gmsh, h_contact)
+            gmsh.option.setNumber("Mesh.MeshSizeMax", self.L / 4)
+            gmsh.model.mesh.generate(3)
+        data = model_to_mesh(gmsh.model, comm, 0, gdim=3)
+        gmsh.finalize()
+        return data.mesh, data.facet_tags
+
+    def _gmsh_box(self, gmsh) -> None:
+        L = self.L
+        gmsh.model.add("quarter block")
+        occ = gmsh.model.occ
+        occ.addBox(0, 0, 0, L, L, L)
+        occ.synchronize()
+        for face in gmsh.model.getEntities(2):
+            x, y, z = occ.getCenterOfMass(*face)
+            tag = (self.BOTTOM if y < 1e-9 else self.TOP if y > L - 1e-9
+                   else self.SYMMETRY if x < 1e-9 else self.SYMMETRY_Z if z < 1e-9 else 0)
+            if tag:
+                gmsh.model.addPhysicalGroup(2, [face[1]], tag)
+        gmsh.model.addPhysicalGroup(3, [1], 1)
+
+    def block(self, domain, facet_tags, *, theta: int = 0, gamma0: float = 10.0,
+              modulus=None) -> HertzSphereBlock:
+        """The P2 displacement, the sphere (touching at the origin), the contact terms, the
+        residual and the supports (top clamped, the two symmetry planes on rollers)."""
+        V = fem.functionspace(domain, ("Lagrange", 2, (3,)))
+        u, v = fem.Function(V), ufl.TestFunction(V)
+        P = self.stress(u)
+        obstacle = Obstacle.at(domain, Sphere(radius=self.R), y_tip=0.0)
+        ds = ufl.Measure("ds", domain, subdomain_data=facet_tags)
+        contact = NitscheContact(u, P, ds(self.BOTTOM), [obstacle],
+                                 modulus=self.modulus if modulus is None else modulus,
+                                 theta=theta, gamma0=gamma0)
+        residual = ufl.inner(P, ufl.grad(v)) * ufl.dx + contact.residual(v)
+        fdim = domain.topology.dim - 1
+        top = fem.locate_dofs_topological(V, fdim, facet_tags.find(self.TOP))
+        bcs = [fem.dirichletbc(np.zeros(3), top, V)]
+        for tag, k in ((self.SYMMETRY, 0), (self.SYMMETRY_Z, 2)):
+            dofs = fem.locate_dofs_topological(V.sub(k), fdim, facet_tags.find(tag))
+            bcs.append(fem.dirichletbc(0.0, dofs, V.sub(k)))
+        return HertzSphereBlock(u, P, obstacle, contact, residual, bcs, facet_tags)
+
+
+@dataclass(frozen=True)
+class HertzSphereBlock(HertzBlock):
+    """A built quarter model of `HertzSphere`; forces are the whole sphere's (4 × the quarter)."""
+
+    def force(self) -> float:
+        """The sphere's push on the block (N)."""
+        return 4 * float(self.contact.forces()[0])
+
+    def reaction(self) -> float:
+        """The fixed top's y-reaction (N): −force at discrete equilibrium."""
+        V = self.u.function_space
+        top = self.facet_tags.find(Hertz.TOP)
+        dofs = fem.locate_dofs_topological(V.sub(1), V.mesh.topology.dim - 1, top)
+        return 4 * support_reaction(self.P, V, dofs)
+
+    def profile(self, points_per_facet: int = 7) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Along the radius on the contact face: the points of the facets on the symmetry line
+        z = 0 (and, the same by symmetry, on x = 0), gathered and sorted by their distance r
+        from the origin: r (mm), the Nitsche pressure and the trial pressure (MPa)."""
+        contact, comm = self.contact, self.u.function_space.mesh.comm
+        X, p = contact.sample(contact.pressure, points_per_facet=points_per_facet)
+        _, s = contact.sample(contact.trial_pressure, points_per_facet=points_per_facet)
+        on_line = (np.abs(X[:, 2]) < 1e-12) | (np.abs(X[:, 0]) < 1e-12)
+        r = np.hypot(X[on_line, 0], X[on_line, 2])
+        r, p, s = (np.concatenate(comm.allgather(a)) for a in (r, p[on_line], s[on_line]))
+        order = np.argsort(r, kind="stable")
+        return r[order], p[order], s[order]
 
 
 def contact_edge(x: np.ndarray, trial: np.ndarray) -> float:
