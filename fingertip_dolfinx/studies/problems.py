@@ -210,7 +210,7 @@ def support_reaction(P, V, dofs) -> float:
 def _small_strain_stress(solid: mat.LinearElastic, u) -> ufl.core.expr.Expr:
     """σ = λ tr(ε) I + 2μ ε, ε = sym Grad u: exactly linear in u (the dynamics' exact checks)."""
     eps = ufl.sym(ufl.grad(u))
-    return solid.lmbda * ufl.tr(eps) * ufl.Identity(2) + 2 * solid.mu * eps
+    return solid.lmbda * ufl.tr(eps) * ufl.Identity(len(u)) + 2 * solid.mu * eps
 
 
 class ConfinedBlock:
@@ -228,6 +228,10 @@ class ConfinedBlock:
     or a node stops the time stepper with a `CompactionError`. The tissue's mass balance takes
     the time stepper's multistep weights (`rate_weights`, `u_nm1`: backward Euler or BDF2), as
     the fingertip's does.
+
+    `gdim = 3`: the column [0, W] × [0, H] × [0, W] of tetrahedra (nx × ny × nx boxes), rollers
+    also on z = 0 and z = W: the same one-dimensional state, whose C = diag(1, λ², 1) has a
+    double eigenvalue. Forces are then in N, the settlement the mean over the loaded area.
     """
 
     #: The axis along which `grading` shrinks the cells (towards its far end: the drained top).
@@ -236,9 +240,15 @@ class ConfinedBlock:
     def __init__(self, nx, ny, load, *, tissue=None, solid=None, prony=None, degree_u=2,
                  width=1.0, H=1.0, load_width=None, drained_top=False, top_displacement=False,
                  diagonal="right", compaction_margin=0.02, grading=1.0, density=None,
-                 small_strain=False, comm=MPI.COMM_SELF):
-        self.msh = mesh.create_rectangle(comm, [[0.0, 0.0], [width, H]], [nx, ny],
-                                         diagonal=getattr(mesh.DiagonalType, diagonal))
+                 small_strain=False, gdim=2, comm=MPI.COMM_SELF):
+        if gdim == 3:
+            self.msh = mesh.create_box(comm, [[0.0, 0.0, 0.0], [width, H, width]], [nx, ny, nx],
+                                       mesh.CellType.tetrahedron)
+        else:
+            self.msh = mesh.create_rectangle(comm, [[0.0, 0.0], [width, H]], [nx, ny],
+                                             diagonal=getattr(mesh.DiagonalType, diagonal))
+        self.gdim = gdim
+        self.fdim = gdim - 1
         if grading != 1.0:  # cells shrink geometrically towards the drained boundary
             axis, length = self.GRADED_AXIS, (width, H)[self.GRADED_AXIS]
             x = self.msh.geometry.x
@@ -246,7 +256,7 @@ class ConfinedBlock:
         self.W, self.H, self.load, self.tissue = width, H, load, tissue
         self.load_width = width if load_width is None else load_width
         self.top_displacement = top_displacement
-        V = fem.functionspace(self.msh, ("Lagrange", degree_u, (2,)))
+        V = fem.functionspace(self.msh, ("Lagrange", degree_u, (gdim,)))
         self.u, self.u_n, self.u_nm1 = fem.Function(V), fem.Function(V), fem.Function(V)
         self.rate_weights = fem.Constant(self.msh, np.array([1.0, -1.0, 0.0]))
         self.p = None if tissue is None else fem.Function(
@@ -269,21 +279,24 @@ class ConfinedBlock:
         self.bcs = self._bcs(drained_top)
         self.entity_maps = None
         self._last = [f.x.array.copy() for f in self.unknowns]
-        cells = np.arange(self.msh.topology.index_map(2).size_local, dtype=np.int32)
+        cells = np.arange(self.msh.topology.index_map(gdim).size_local, dtype=np.int32)
         self.admissibility = Admissibility(F, self.msh, QUADRATURE_DEGREE, None if tissue is None
                                            else Compaction(cells, tissue.phi0, compaction_margin,
                                                            tissue.permeability.k0))
-        self._J = fem.Expression(ufl.det(F), np.array([[1 / 3, 1 / 3]]))  # at the centroids
+        centroid = np.full((1, gdim), 1 / (gdim + 1))
+        self._J = fem.Expression(ufl.det(F), centroid)  # at the centroids
         self._settle = fem.form(-self.u[1] * self.ds(1))
 
     def _top_facets(self) -> np.ndarray:
-        return mesh.locate_entities_boundary(self.msh, 1, lambda x: np.isclose(x[1], self.H))
+        return mesh.locate_entities_boundary(self.msh, self.fdim,
+                                             lambda x: np.isclose(x[1], self.H))
 
     def _top_measure(self) -> ufl.Measure:
         """ds with the loaded part of the top (facet midpoints at x < load_width) tagged 1."""
         top = self._top_facets()
-        loaded = top[mesh.compute_midpoints(self.msh, 1, top)[:, 0] < self.load_width + 1e-12]
-        tags = mesh.meshtags(self.msh, 1, loaded, np.full(len(loaded), 1, dtype=np.int32))
+        loaded = top[mesh.compute_midpoints(self.msh, self.fdim, top)[:, 0]
+                     < self.load_width + 1e-12]
+        tags = mesh.meshtags(self.msh, self.fdim, loaded, np.full(len(loaded), 1, dtype=np.int32))
         return ufl.Measure("ds", domain=self.msh, subdomain_data=tags)
 
     def _residuals(self, P_e) -> list[ufl.Form]:
@@ -306,25 +319,28 @@ class ConfinedBlock:
 
     def _bcs(self, drained_top: bool) -> list[fem.DirichletBC]:
         """The rollers, the prescribed top u_y if the top is displaced, p = 0 if drained."""
-        msh, W = self.msh, self.W
-        sides = mesh.locate_entities_boundary(
-            msh, 1, lambda x: np.isclose(x[0], 0.0) | np.isclose(x[0], W))
-        bottom = mesh.locate_entities_boundary(msh, 1, lambda x: np.isclose(x[1], 0.0))
-        Vx, Vy = self.u.function_space.sub(0), self.u.function_space.sub(1)
-        bcs = [fem.dirichletbc(0.0, fem.locate_dofs_topological(Vx, 1, sides), Vx),
-               fem.dirichletbc(0.0, fem.locate_dofs_topological(Vy, 1, bottom), Vy)]
+        msh, W, fdim = self.msh, self.W, self.fdim
+        bottom = mesh.locate_entities_boundary(msh, fdim, lambda x: np.isclose(x[1], 0.0))
+        Vy = self.u.function_space.sub(1)
+        bcs = [fem.dirichletbc(0.0, fem.locate_dofs_topological(Vy, fdim, bottom), Vy)]
+        for k in (0, 2)[:self.gdim - 1]:  # the sides normal to x (and to z in 3D)
+            sides = mesh.locate_entities_boundary(
+                msh, fdim, lambda x, k=k: np.isclose(x[k], 0.0) | np.isclose(x[k], W))
+            Vk = self.u.function_space.sub(k)
+            bcs.append(fem.dirichletbc(0.0, fem.locate_dofs_topological(Vk, fdim, sides), Vk))
         if self.top_displacement:
             bcs.append(fem.dirichletbc(self.value, self._top_y_dofs, Vy))
         if drained_top:
             Q = self.p.function_space
-            bcs.append(fem.dirichletbc(0.0, fem.locate_dofs_topological(Q, 1, self._top_facets()),
-                                       Q))
+            bcs.append(fem.dirichletbc(
+                0.0, fem.locate_dofs_topological(Q, fdim, self._top_facets()), Q))
         return bcs
 
     @cached_property
     def _top_y_dofs(self) -> np.ndarray:
         """The top's y-dofs (indices into u's array)."""
-        return fem.locate_dofs_topological(self.u.function_space.sub(1), 1, self._top_facets())
+        return fem.locate_dofs_topological(self.u.function_space.sub(1), self.fdim,
+                                           self._top_facets())
 
     # Steppable --------------------------------------------------------------------------------
     def set_time(self, t):
@@ -390,7 +406,8 @@ class ConfinedBlock:
 
     def settlement(self) -> float:
         """Mean downward displacement of the loaded part of the top (mm)."""
-        return self.msh.comm.allreduce(fem.assemble_scalar(self._settle)) / self.load_width
+        area = self.load_width * (self.W if self.gdim == 3 else 1.0)
+        return self.msh.comm.allreduce(fem.assemble_scalar(self._settle)) / area
 
     @cached_property
     def _reaction_form(self) -> fem.Form:
@@ -406,7 +423,7 @@ class ConfinedBlock:
 
     def _jacobians(self) -> tuple[np.ndarray, np.ndarray]:
         """J at the owned cells' centroids, and the cells' centres."""
-        n = self.msh.topology.index_map(2).size_local
+        n = self.msh.topology.index_map(self.gdim).size_local
         cells = np.arange(n, dtype=np.int32)
         centres = self.msh.geometry.x[self.msh.geometry.dofmaps[0][cells]].mean(axis=1)
         return self._J.eval(self.msh, cells).reshape(n), centres
@@ -430,13 +447,13 @@ class ConfinedBlock:
         """(x, y) of the pressure nodes (mm) and p there (MPa), gathered from every rank."""
         Q, comm = self.p.function_space, self.msh.comm
         n = Q.dofmap.index_map.size_local
-        X = np.concatenate(comm.allgather(Q.tabulate_dof_coordinates()[:n, :2]))
+        X = np.concatenate(comm.allgather(Q.tabulate_dof_coordinates()[:n, :self.gdim]))
         return X, np.concatenate(comm.allgather(self.p.x.array[:n]))
 
     def pressure_at(self, y: np.ndarray) -> np.ndarray:
-        """p along the left edge x = 0 at heights y (P1: exact between its nodes)."""
+        """p along the left edge x = 0 (and z = 0) at heights y (P1: exact between its nodes)."""
         X, p = self.pressure_nodes()
-        left = np.isclose(X[:, 0], 0.0)
+        left = np.isclose(X[:, 0], 0.0) & (np.isclose(X[:, 2], 0.0) if self.gdim == 3 else True)
         order = np.argsort(X[left, 1])
         return np.interp(y, X[left, 1][order], p[left][order])
 
