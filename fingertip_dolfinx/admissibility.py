@@ -70,9 +70,10 @@ class Lowest:
 
     @property
     def where(self) -> str:
-        """The reference position in mm to the micrometre (no negative zero)."""
-        x, y = (round(float(v), 3) + 0.0 for v in self.x[:2])
-        return f"({x:.3f}, {y:.3f}) mm"
+        """The reference position in mm to the micrometre (no negative zero); (x, y) in
+        plane strain, (x, y, z) in 3D."""
+        parts = ", ".join(f"{round(float(v), 3) + 0.0:.3f}" for v in self.x)
+        return f"({parts}) mm"
 
 
 @dataclass(frozen=True)
@@ -162,10 +163,10 @@ class Admissibility:
 
         def where():
             X = self._X.eval(self.mesh, cells[cell:cell + 1]).reshape(-1, self.mesh.geometry.dim)
-            return X[point, :2], bool(point >= self._first_node)
+            return X[point], bool(point >= self._first_node)
 
         if J_min == np.inf:  # no cells on any rank
-            return Lowest(J_min, np.full(2, np.nan), False)
+            return Lowest(J_min, np.full(self.mesh.geometry.dim, np.nan), False)
         x, at_node = from_holder(comm, local == J_min, where)
         return Lowest(float("nan") if J_min == -np.inf else J_min, np.asarray(x), at_node)
 

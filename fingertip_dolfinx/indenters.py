@@ -9,6 +9,12 @@ Round-tipped shapes are dilations: a sharp core (a point, a downward ray, a down
 by the tip radius r. For a convex core K, SDF(K ⊕ disc_r) = SDF(K) − r exactly, inside and out,
 so the round tip is exact, not smoothed. The flanks run down without end: the base only sets the
 flank angle, and no part of a finger ever reaches the indenter's body below it.
+
+In 3D (points with three coordinates; z along the finger) the 2D shapes are prisms: `axis = "z"`
+(default) runs the edge along the finger, so every section z = const sees the 2D profile at
+centre_x (the plane-strain model's line load); `axis = "x"` runs it across the finger, the
+profile lying in the (z, y) plane at z = centre_z (centre_x then plays no part). `Sphere` is
+3D only. In 2D (two coordinates) nothing changes; an "x" prism or a sphere is refused there.
 """
 
 from __future__ import annotations
@@ -43,48 +49,97 @@ _NUMPY = _Ops(np.where, np.sqrt, np.abs, np.sign)
 _UFL = _Ops(ufl.conditional, ufl.sqrt, abs, ufl.sign)
 
 
+#: Prism directions: "z" along the finger (the plane-strain line load), "x" across it.
+AXES = ("z", "x")
+#: Keys that have a default (every other size must be given).
+OPTIONAL_KEYS = ("centre_x", "centre_z", "axis")
+
+
 @dataclass(frozen=True, kw_only=True)
 class Indenter:
-    """Base class: a rigid shape whose highest point is at (centre_x, y_tip)."""
+    """Base class: a rigid shape whose highest point is at (centre_x, y_tip[, centre_z])."""
 
     centre_x: float = 0.0
+    centre_z: float = 0.0  # mm along the finger (3D: an "x" prism's or a sphere's position)
     shape: ClassVar[str]
 
     def __post_init__(self):
         for f in fields(self):
+            if f.name == "axis":
+                continue
             value = getattr(self, f.name)
             if isinstance(value, bool) or not isinstance(value, int | float):
                 raise InputError(f"{self.shape}.{f.name}", f"must be a number, got {value!r}.")
             if not math.isfinite(value):
                 raise InputError(f"{self.shape}.{f.name}", f"must be finite, got {value}.")
-            if f.name != "centre_x" and value <= 0:
+            if f.name not in ("centre_x", "centre_z") and value <= 0:
                 raise InputError(
                     f"{self.shape}.{f.name}", f"must be positive (mm), got {value}.",
                     "give the size in mm as a positive number.",
                 )
 
-    def _distance(self, px, py, y_tip, ops: _Ops):
-        """(φ, n_x, n_y) at the point (px, py), components in the backend `ops`."""
-        raise NotImplementedError
-
     def tip_curvature_radius(self) -> float:
         """Radius of curvature at the tip (mm): what the surface mesh must resolve."""
         return math.inf  # flat
 
+    def _field(self, coords: list, y_tip, ops: _Ops) -> tuple:
+        """(φ, [n components]) at the point with coordinates `coords` (2 or 3 of them)."""
+        raise NotImplementedError
+
     def signed_distance(self, x, y_tip) -> tuple[ufl.core.expr.Expr, ufl.core.expr.Expr]:
-        """UFL (φ, n) at the current position `x` (a UFL 2-vector, e.g. X + u).
+        """UFL (φ, n) at the current position `x` (a UFL 2- or 3-vector, e.g. X + u).
 
         `y_tip` is a `fem.Constant` (or a number): moving the indenter never recompiles a form.
         """
-        phi, nx, ny = self._distance(x[0], x[1], y_tip, _UFL)
-        return phi, ufl.as_vector((nx, ny))
+        phi, n = self._field([x[i] for i in range(x.ufl_shape[0])], y_tip, _UFL)
+        return phi, ufl.as_vector(n)
 
     def signed_distance_np(self, points, y_tip: float) -> tuple[np.ndarray, np.ndarray]:
-        """numpy (φ of shape (m,), n of shape (m, 2)) at `points` of shape (m, 2 or 3)."""
+        """numpy (φ of shape (m,), n of shape (m, d)) at `points` of shape (m, d), d = 2 or 3.
+
+        A 2D section's points given with a third column (z = 0) are 3D points: a "z" prism's φ
+        does not depend on z, so φ is the section's; n gets a third component 0."""
         p = np.asarray(points, dtype=float)
         with np.errstate(divide="ignore", invalid="ignore"):  # branches np.where discards
-            phi, nx, ny = self._distance(p[:, 0], p[:, 1], float(y_tip), _NUMPY)
-        return phi, np.column_stack(np.broadcast_arrays(nx, ny))
+            phi, n = self._field([p[:, i] for i in range(p.shape[1])], float(y_tip), _NUMPY)
+        return phi, np.column_stack(np.broadcast_arrays(*n))
+
+    def _refuse_2d(self, what: str):
+        raise InputError(f"{self.shape}", f"{what} needs a 3D mesh (points with x, y, z).",
+                         "use a 3D fingertip mesh, or a 'z' prism in the plane-strain section.")
+
+
+@dataclass(frozen=True, kw_only=True)
+class _Prism(Indenter):
+    """A 2D profile (`_distance` in its own plane) extruded along `axis` in 3D."""
+
+    axis: str = "z"
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.axis not in AXES:
+            raise InputError(f"{self.shape}.axis", f"got {self.axis!r}.",
+                             "use 'z' (edge along the finger) or 'x' (edge across it).")
+
+    def _distance(self, px, py, y_tip, ops: _Ops):
+        """(φ, n_a, n_y) of the profile at (px, py), components in the backend `ops`."""
+        raise NotImplementedError
+
+    def _field(self, coords, y_tip, ops):
+        if len(coords) == 2:
+            if self.axis != "z":
+                self._refuse_2d("an 'x' prism (edge across the finger)")
+            phi, na, ny = self._distance(coords[0], coords[1], y_tip, ops)
+            return phi, [na, ny]
+        x, y, z = coords
+        zero = 0.0 * x
+        if self.axis == "z":
+            phi, na, ny = self._distance(x, y, y_tip, ops)
+            return phi, [na, ny, zero]
+        # The profile in the (z, y) plane: its horizontal coordinate is z − centre_z, put where
+        # `_distance` expects it (relative to centre_x).
+        phi, na, ny = self._distance(z - self.centre_z + self.centre_x, y, y_tip, ops)
+        return phi, [zero, ny, na]
 
 
 def penetration(indenter: Indenter, points, y_tip: float) -> np.ndarray:
@@ -94,7 +149,7 @@ def penetration(indenter: Indenter, points, y_tip: float) -> np.ndarray:
 
 
 @dataclass(frozen=True, kw_only=True)
-class Plate(Indenter):
+class Plate(_Prism):
     """A flat rigid plate filling y < y_tip (centre_x plays no part)."""
 
     shape: ClassVar[str] = "plate"
@@ -104,8 +159,8 @@ class Plate(Indenter):
 
 
 @dataclass(frozen=True, kw_only=True)
-class Cylinder(Indenter):
-    """A rigid cylinder (a disc in the section) of the given radius."""
+class Cylinder(_Prism):
+    """A rigid cylinder (a disc in the section) of the given radius; in 3D its axis is `axis`."""
 
     radius: float
     shape: ClassVar[str] = "cylinder"
@@ -120,7 +175,7 @@ class Cylinder(Indenter):
 
 
 @dataclass(frozen=True, kw_only=True)
-class _RoundCone(Indenter):
+class _RoundCone(_Prism):
     """A downward cone of half-angle α (a ray if α = 0) dilated by the tip radius r."""
 
     def _tip(self) -> tuple[float, float]:
@@ -193,7 +248,28 @@ class Bar(_RoundCone):
         return self.width / 2, 0.0
 
 
-SHAPES: dict[str, type[Indenter]] = {cls.shape: cls for cls in (Wedge, Bar, Plate, Cylinder)}
+@dataclass(frozen=True, kw_only=True)
+class Sphere(Indenter):
+    """A rigid sphere (a round probe, 3D only): centre (centre_x, y_tip − radius, centre_z).
+    φ = |x − c| − radius and n = (x − c)/|x − c|, exact everywhere but at the centre."""
+
+    radius: float
+    shape: ClassVar[str] = "sphere"
+
+    def tip_curvature_radius(self) -> float:
+        return self.radius
+
+    def _field(self, coords, y_tip, ops):
+        if len(coords) != 3:
+            self._refuse_2d("a sphere")
+        x, y, z = coords
+        dx, dy, dz = x - self.centre_x, y - (y_tip - self.radius), z - self.centre_z
+        d = ops.sqrt(dx * dx + dy * dy + dz * dz)
+        return d - self.radius, [dx / d, dy / d, dz / d]
+
+
+SHAPES: dict[str, type[Indenter]] = {
+    cls.shape: cls for cls in (Wedge, Bar, Plate, Cylinder, Sphere)}
 
 
 def make_indenter(data: dict[str, Any], where: str = "indenter") -> Indenter:
@@ -212,11 +288,12 @@ def make_indenter(data: dict[str, Any], where: str = "indenter") -> Indenter:
             f"{where}: {', '.join(unknown)}", f"unknown key(s) for a {shape}.",
             f"the keys of a {shape} are: shape, {', '.join(allowed)}.",
         )
-    missing = [f.name for f in fields(cls) if f.name not in data and f.name != "centre_x"]
+    missing = [f.name for f in fields(cls) if f.name not in data and f.name not in OPTIONAL_KEYS]
     if missing:
         raise InputError(
             f"{where}: {', '.join(missing)}", f"missing for a {shape}.",
-            f"give every size of a {shape}: {', '.join(allowed)} (centre_x defaults to 0).",
+            f"give every size of a {shape}: {', '.join(allowed)} (centre_x, centre_z "
+            "default to 0, axis to 'z').",
         )
     try:
         return cls(**data)
@@ -225,7 +302,8 @@ def make_indenter(data: dict[str, Any], where: str = "indenter") -> Indenter:
 
 
 def load_indenter(source: str | Path) -> Indenter:
-    """A built-in indenter by name ("wedge", "bar", "plate", "cylinder") or a TOML file path."""
+    """A built-in indenter by name ("wedge", "bar", "plate", "cylinder", "sphere") or a TOML
+    file path."""
     path = find("indenters", source, "indenter")
     data = read_toml(path)
     return make_indenter(data, where=str(path))

@@ -8,8 +8,9 @@ its Taylor series in Δ (a polynomial in C, so exact derivatives of every order)
 Nothing is regularised: no epsilon is added anywhere (an epsilon inside the sqrt gives a
 finite but wrong tangent at u = 0, by a factor ~2, see tests/test_kinematics.py).
 
-Plane strain throughout the model: 2×2 tensors, the out-of-plane stretch λ3 = 1 is put in by
-the material laws. The 3×3 versions serve 3D checks of the same material laws.
+Plane strain: 2×2 tensors, the out-of-plane stretch λ3 = 1 is put in by the material laws.
+3D: 3×3 tensors; the 3×3 sum is exact also at a double eigenvalue (uniaxial, equibiaxial,
+confined compression), see `_eigen_sum_3d`.
 """
 
 from __future__ import annotations
@@ -134,9 +135,25 @@ def hencky_strain(F, spatial: bool = True) -> ufl.core.expr.Expr:
     return 0.5 * isotropic_tensor_function(B, ufl.ln)
 
 
+def principal_values_3d(C) -> tuple:
+    """(c_max, c_min) of a symmetric 3×3 tensor by Cardano's formula. Values only: not for
+    differentiation (r is clamped to [−1, 1] and C ∝ I gives r = 0: both exact values)."""
+    m = ufl.tr(C) / 3
+    D = C - m * ufl.Identity(3)
+    q = ufl.inner(D, D)
+    isotropic = ufl.le(q, 1e-30 * m**2)
+    p = ufl.sqrt(ufl.conditional(isotropic, m**2, q) / 6)
+    r = ufl.conditional(isotropic, 0.0, ufl.det(D / p) / 2)
+    phi = ufl.acos(ufl.max_value(ufl.min_value(r, 1.0), -1.0)) / 3
+    p = ufl.conditional(isotropic, 0.0, p)
+    return m + 2 * p * ufl.cos(phi), m + 2 * p * ufl.cos(phi + 2 * math.pi / 3)
+
+
 def principal_log_strains(F) -> tuple:
-    """In-plane (max, min) principal logarithmic strains ½ ln c± (values, for outputs)."""
-    c_max, c_min = principal_values_2d(right_cauchy_green(F))
+    """(max, min) principal logarithmic strains ½ ln c (values, for outputs): in-plane for a
+    2×2 F (plane strain), over all three directions for a 3×3 F."""
+    C = right_cauchy_green(F)
+    c_max, c_min = principal_values_3d(C) if C.ufl_shape == (3, 3) else principal_values_2d(C)
     return 0.5 * ufl.ln(c_max), 0.5 * ufl.ln(c_min)
 
 
@@ -146,15 +163,78 @@ def principal_stretches_2d(C) -> tuple:
     return ufl.sqrt(c_max), ufl.sqrt(c_min)
 
 
-def _eigen_sum_3d(C, f: ScalarFn, tol: float):
-    """3×3 version: series in the power sums of the deviator D = C − mI near C ∝ I.
+#: |r| above which `_eigen_sum_3d` leaves the trigonometric (Cardano) form for the pair
+#: series. Below it d acos(r)/dr = −1/sqrt(1 − r²) is at most 2.3: no cancellation.
+PAIR_SWITCH = 0.9
+#: Terms of the series of 1 − cos(acos(1 − t)/3) in t: its radius of convergence is 2, so at
+#: t ≤ 1 − PAIR_SWITCH = 0.1 the terms fall by ~20 per order and 16 leave < 1e-20.
+PAIR_TERMS = 16
 
-    Σ_a f(m + d_a) = 3f(m) + Σ_k f⁽ᵏ⁾(m) tr(Dᵏ)/k!, a polynomial in C, used for
-    tr(D²) < tol·m² (this covers C = I exactly). Elsewhere the trigonometric (Cardano)
-    eigenvalues. Limitation: at a *double* eigenvalue away from C ∝ I (e.g. exact uniaxial
-    or equibiaxial states) the acos form has an infinite derivative times zero; the sum is
-    smooth there but this formula is not, so 3D tangents are only reliable off such states.
-    The plane-strain model never takes this path.
+
+def _one_minus_g_coefficients(n: int) -> list:
+    """Coefficients a_1..a_n of e(t) = 1 − g, g = cos(acos(1 − t)/3), as exact fractions.
+
+    g solves the Chebyshev identity 4g³ − 3g = r = 1 − t, i.e. 9e − 12e² + 4e³ = t; the
+    implicit function theorem (d/dg (4g³ − 3g) = 9 at g = 1) makes e analytic in t. The
+    fixed point e = (t + 12e² − 4e³)/9 on truncated power series gains one order per pass.
+    """
+    from fractions import Fraction
+
+    def mul(a, b):
+        out = [Fraction(0)] * (n + 1)
+        for i, ai in enumerate(a):
+            if ai:
+                for j in range(n + 1 - i):
+                    out[i + j] += ai * b[j]
+        return out
+
+    e = [Fraction(0)] * (n + 1)
+    for _ in range(n + 1):
+        e2 = mul(e, e)
+        e3 = mul(e2, e)
+        e = [(int(k == 1) + 12 * e2[k] - 4 * e3[k]) / 9 for k in range(n + 1)]
+    return [float(c) for c in e[1:]]
+
+
+_E_COEFFICIENTS = _one_minus_g_coefficients(PAIR_TERMS)
+
+
+def _one_minus_g(t):
+    """e(t) = 1 − cos(acos(1 − t)/3) by its power series (Horner): a polynomial, so exact
+    derivatives of every order at t = 0, where the acos form has 1/sqrt(0)."""
+    out = 0.0
+    for c in reversed(_E_COEFFICIENTS):
+        out = (out + c) * t
+    return out
+
+
+def _pair_sum(f: ScalarFn, x, delta, tol: float):
+    """f(x + s) + f(x − s), s² = Δ: the 2D even sum (series in Δ for Δ < tol·x²)."""
+    near = ufl.lt(delta, tol * x**2)
+    s = ufl.sqrt(ufl.conditional(near, tol * x**2, delta))
+    f0, _, f2, _, f4, _, f6 = _derivatives(f, x, 6)
+    series = 2 * f0 + f2 * delta + f4 * delta**2 / 12 + f6 * delta**3 / 360
+    return ufl.conditional(near, series, f(x + s) + f(x - s))
+
+
+def _eigen_sum_3d(C, f: ScalarFn, tol: float):
+    """3×3 version, exact (value and derivatives) at every state, in three regions.
+
+    With m = tr C/3, D = C − mI, p = sqrt(tr(D²)/6), r = det(D/p)/2 ∈ [−1, 1] and
+    φ = acos(r)/3, the eigenvalues are m + 2p cos(φ + 2πk/3) (Cardano).
+
+    - C ∝ I (tr(D²) < tol·m², covers C = I): Σ_a f(m + d_a) = 3f(m) + Σ_k f⁽ᵏ⁾(m) tr(Dᵏ)/k!,
+      a polynomial in C.
+    - |r| < PAIR_SWITCH: the Cardano form (acos's derivative is bounded there).
+    - |r| ≥ PAIR_SWITCH, around a double eigenvalue (r = ±1: uniaxial, equibiaxial, confined
+      compression C = diag(1, λ², 1)): with σ = sign r, t = 1 − |r|, g = cos φ = 1 − e(t),
+      the simple eigenvalue is m + 2σ p g and the other two are x ± s with x = m − σ p g and
+      s² = 3p²(1 − g²) = 3p² e (2 − e). e(t) is a power series (`_one_minus_g`) and the pair
+      enters only through the even sum f(x + s) + f(x − s) (`_pair_sum`, the 2D series near
+      s = 0): no square root of a vanishing quantity anywhere, so the stress and the tangent
+      are exact at the double eigenvalue too. (Clamping r to 1 − δ instead gives the right
+      stress, since dr/dC = 0 at r = ±1, but drops ∂G/∂r · d²r/dC² from the tangent: an O(1)
+      error there, tests/test_kinematics.py measures it.)
     """
     I = ufl.Identity(3)
     m = ufl.tr(C) / 3
@@ -169,7 +249,18 @@ def _eigen_sum_3d(C, f: ScalarFn, tol: float):
 
     p = ufl.sqrt(ufl.conditional(near, tol * m**2, q) / 6)
     r = ufl.det(D / p) / 2
-    r = ufl.conditional(ufl.gt(r, 1.0), 1.0, ufl.conditional(ufl.lt(r, -1.0), -1.0, r))
-    phi = ufl.acos(r) / 3
+    paired = ufl.ge(abs(r), PAIR_SWITCH)
+    # Each branch gets an r inside its own range, so the branch not taken stays finite.
+    r_trig = ufl.max_value(ufl.min_value(r, PAIR_SWITCH), -PAIR_SWITCH)
+    phi = ufl.acos(r_trig) / 3
     closed = sum(f(m + 2 * p * ufl.cos(phi + 2 * math.pi * k / 3)) for k in range(3))
-    return ufl.conditional(near, series, closed)
+
+    sigma = ufl.conditional(ufl.ge(r, 0.0), 1.0, -1.0)
+    # Round-off can put |r| a hair above 1: t < 0 by ~1e-16 is inside the series' range, and
+    # no clamp there (a clamp would drop the t-derivatives the tangent needs).
+    t = ufl.min_value(1.0 - sigma * r, 1.0 - PAIR_SWITCH)
+    e = _one_minus_g(t)
+    g = 1.0 - e
+    pair = (f(m + 2 * sigma * p * g)
+            + _pair_sum(f, m - sigma * p * g, 3 * p**2 * e * (2.0 - e), tol))
+    return ufl.conditional(near, series, ufl.conditional(paired, pair, closed))

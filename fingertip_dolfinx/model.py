@@ -206,7 +206,7 @@ class SmallStrain:
     def __init__(self, E: float, nu: float, state: State):
         mu, lmbda = E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))
         eps = ufl.sym(ufl.grad(state.u))
-        sigma = lmbda * ufl.tr(eps) * ufl.Identity(2) + 2 * mu * eps
+        sigma = lmbda * ufl.tr(eps) * ufl.Identity(len(state.u)) + 2 * mu * eps
         self.stress = self.elastic_stress = sigma
         self.energy = 0.5 * ufl.inner(sigma, eps)
         self.p_wave_modulus = p_wave_modulus(E, nu)

@@ -19,7 +19,7 @@ from .kinematics import hencky_strain, principal_log_strains
 class PointSampler:
     """Evaluates functions of one mesh at fixed points; results gathered on rank 0.
 
-    `points` (n, 2) must be the same on every rank. Points outside the mesh give NaN.
+    `points` (n, gdim) must be the same on every rank. Points outside the mesh give NaN.
     """
 
     def __init__(self, msh: dmesh.Mesh, points: np.ndarray, padding: float = 1e-10):
@@ -27,7 +27,7 @@ class PointSampler:
         self.n = len(points)
         mine = np.zeros((self.n if self.comm.rank == 0 else 0, 3))
         if self.comm.rank == 0:
-            mine[:, :2] = points
+            mine[:, :np.shape(points)[1]] = points
         data = geometry.determine_point_ownership(msh, mine, padding)
         self._points = np.asarray(data.dest_points).reshape(-1, 3)
         self._cells = np.asarray(data.dest_cells, dtype=np.int32)
@@ -59,26 +59,36 @@ class PointSampler:
 
 
 class DerivedFields:
-    """Log strain, principal log strains and strain energy density as DG1 functions.
+    """Log strain, principal log strains (max, min) and strain energy density as DG1 functions.
 
     `energies` maps a cell-tag value to the UFL strain energy density of that region.
+    Plane strain: ½ ln b and the in-plane principal values in UFL (kinematics). 3D: b = F Fᵀ is
+    interpolated (exact at the DG1 nodes) and decomposed there by numpy's symmetric eigensolver,
+    which is exact at repeated eigenvalues too (a UFL spectral projector is 0/0 there).
     """
 
     def __init__(self, u: fem.Function, cell_tags: dmesh.MeshTags, energies: dict[int, object]):
         msh = u.function_space.mesh
-        F = ufl.Identity(2) + ufl.grad(u)
-        tensor = fem.functionspace(msh, ("Discontinuous Lagrange", 1, (2, 2)))
+        d = len(u)
+        F = ufl.Identity(d) + ufl.grad(u)
+        tensor = fem.functionspace(msh, ("Discontinuous Lagrange", 1, (d, d)))
         vector = fem.functionspace(msh, ("Discontinuous Lagrange", 1, (2,)))
         scalar = fem.functionspace(msh, ("Discontinuous Lagrange", 1))
         self.log_strain = fem.Function(tensor, name="log_strain")
         self.principal = fem.Function(vector, name="principal_log_strain")
         self.sed = fem.Function(scalar, name="strain_energy_density")
         self._sed_by_region = []
-        self._plan = [
-            (self.log_strain, fem.Expression(hencky_strain(F), tensor.element.interpolation_points)),
-            (self.principal, fem.Expression(ufl.as_vector(principal_log_strains(F)),
-                                            vector.element.interpolation_points)),
-        ]
+        points = tensor.element.interpolation_points
+        if d == 2:
+            self._b = None
+            self._plan = [
+                (self.log_strain, fem.Expression(hencky_strain(F), points)),
+                (self.principal, fem.Expression(ufl.as_vector(principal_log_strains(F)),
+                                                vector.element.interpolation_points)),
+            ]
+        else:
+            self._b = fem.Function(tensor)
+            self._plan = [(self._b, fem.Expression(F * F.T, points))]
         for tag, energy in energies.items():
             cells = cell_tags.find(tag)
             self._sed_by_region.append(
@@ -88,6 +98,11 @@ class DerivedFields:
     def update(self) -> None:
         for f, expr in self._plan:
             f.interpolate(expr)
+        if self._b is not None:
+            c, n = np.linalg.eigh(self._b.x.array.reshape(-1, 3, 3))  # ascending c
+            e = 0.5 * np.log(c)
+            self.log_strain.x.array[:] = np.einsum("kia,ka,kja->kij", n, e, n).ravel()
+            self.principal.x.array.reshape(-1, 2)[:] = e[:, ::-1][:, [0, 2]]
         for cells, expr in self._sed_by_region:
             self.sed.interpolate(expr, cells0=cells)
         for f in (self.log_strain, self.principal, self.sed):
@@ -95,7 +110,7 @@ class DerivedFields:
 
 
 class QuadratureProjection:
-    """2×2 tensor expressions, one per set of cells, evaluated at the quadrature points of
+    """Square (gdim × gdim) tensor expressions, one per set of cells, evaluated at the quadrature points of
     degree `quadrature_degree` (where a QLV history lives) and projected onto a DG1 tensor
     function cell by cell (least squares with the rule's weights: the local L2 projection on
     affine cells). `update()` re-evaluates them."""
@@ -105,7 +120,8 @@ class QuadratureProjection:
         import basix
 
         self.mesh = msh
-        space = fem.functionspace(msh, ("Discontinuous Lagrange", 1, (2, 2)))
+        d = msh.geometry.dim
+        space = fem.functionspace(msh, ("Discontinuous Lagrange", 1, (d, d)))
         self.stress = fem.Function(space, name=name)
         points, weights = basix.make_quadrature(msh.basix_cell(), quadrature_degree)
         p1 = basix.create_element(basix.ElementFamily.P, msh.basix_cell(), 1,
@@ -116,12 +132,13 @@ class QuadratureProjection:
         self._plan = [(cells, fem.Expression(expr, points)) for cells, expr in plan]
 
     def update(self) -> None:
-        values = self.stress.x.array.reshape(-1, 4)
+        size = self.mesh.geometry.dim**2
+        values = self.stress.x.array.reshape(-1, size)
         dofmap = self.stress.function_space.dofmap.list
         n = self._fit.shape[1]
         for cells, expr in self._plan:
             if len(cells):
-                at_points = expr.eval(self.mesh, cells).reshape(len(cells), n, 4)
+                at_points = expr.eval(self.mesh, cells).reshape(len(cells), n, size)
                 values[dofmap[cells]] = np.einsum("dq,cqk->cdk", self._fit, at_points)
         self.stress.x.scatter_forward()
 
@@ -140,7 +157,7 @@ class CauchyStress(QuadratureProjection):
 
     def __init__(self, u: fem.Function, cell_tags: dmesh.MeshTags, laws: dict[int, object],
                  quadrature_degree: int):
-        F = ufl.Identity(2) + ufl.grad(u)
+        F = ufl.Identity(len(u)) + ufl.grad(u)
         plan = [(cell_tags.find(tag), accepted_stress(law, F) * F.T / ufl.det(F))
                 for tag, law in laws.items()]
         super().__init__(u.function_space.mesh, plan, quadrature_degree, "cauchy_stress")
@@ -222,16 +239,17 @@ class FieldArrays:
     """The state's fields as plain arrays, cell by cell, gathered on rank 0.
 
     `__call__()` returns (rank 0; None elsewhere): each owned cell's corners in the reference
-    configuration `X` (cells, corners, 2), the displacement there `u`, the cell's region tag
+    configuration `X` (cells, corners, gdim), the displacement there `u`, the cell's region tag
     `region`, and the derived fields at the corners (discontinuous P1, so exact): `sed` (MPa),
-    `log_strain` (cells, corners, 4: e11, e12, e21, e22), `principal` (e_max, e_min); with a
+    `log_strain` (cells, corners, gdim²: e11, e12, e21, e22 in 2D), `principal` (e_max, e_min); with a
     pore pressure, the subcutaneous submesh's corners `X_p`, their displacement `u_p` and `p`.
     """
 
     def __init__(self, problem, derived: DerivedFields):
         self.problem, self.derived = problem, derived
         msh = problem.mesh
-        self.u1 = fem.Function(fem.functionspace(msh, ("Lagrange", 1, (2,))))
+        self.gdim = msh.geometry.dim
+        self.u1 = fem.Function(fem.functionspace(msh, ("Lagrange", 1, (self.gdim,))))
         self.nodes = _owned_cell_nodes(msh)
         self.region = _cell_regions(problem.fmesh.cell_tags, len(self.nodes))
         if problem.p is not None:
@@ -243,14 +261,14 @@ class FieldArrays:
         self.u1.interpolate(p.u)  # exact at the vertices, where the corners are
         disp = node_values(self.u1)
         cells = np.arange(len(self.nodes), dtype=np.int32)
-        local = {"X": msh.geometry.x[self.nodes][..., :2], "u": disp[self.nodes],
+        local = {"X": msh.geometry.x[self.nodes][..., :self.gdim], "u": disp[self.nodes],
                  "region": self.region,
                  **{name: _dg_corner_values(f, cells) for name, f in (
                      ("sed", self.derived.sed), ("log_strain", self.derived.log_strain),
                      ("principal", self.derived.principal))}}
         if p.p is not None:
             sub = self.sub_nodes
-            local["X_p"] = p.submesh.geometry.x[sub][..., :2]
+            local["X_p"] = p.submesh.geometry.x[sub][..., :self.gdim]
             local["u_p"] = disp[p.submesh_nodes][sub]
             local["p"] = node_values(p.p)[sub][..., 0]
         gathered = msh.comm.gather(local, root=0)

@@ -22,11 +22,18 @@ The residual is assembled from named parts: `_region_stresses`, `_pressure`, `_c
 the `_support`:
 
 Support: the `nail_centre` patch (a short arc at the top of the nail, centred on the point the
-paper fixes) is clamped in x and y. A single fixed point would leave the rigid rotation about
+paper fixes; in 3D a strip along the nail's top) is clamped in every component. A single fixed point would leave the rigid rotation about
 it free; clamping the short patch of the 170 MPa nail removes it and exerts no force of its
 own: at equilibrium its reaction equals the indenter force, and for a load on the symmetry
 line its moment is zero. If a region is rigid (bone, nail), its nodes are clamped instead and
 hold the body. The reaction is the residual tested with e_y on all clamped dofs.
+3D meshes may carry two more supports, rollers that exert no y-force: `proximal_cut` (the
+plane z = 0 where the model is cut from the rest of the finger, which continues beyond it):
+u_z = 0; `symmetry` (the mid-sagittal plane x = 0 of a half model): u_x = 0. A half model's
+forces and reaction are half the whole finger's (`mirror_factor` = 2 gives the whole).
+
+Units: forces in N/mm in plane strain (per unit length of finger), in N in 3D; the diagnostics
+name them accordingly (`force_keys`).
 
 Inertia (`ModelOptions.inertia`, a dynamic run): the momentum balance gains `_inertia`,
 Σ_r ∫_r ρ_r [(1 − α_m) a_{n+1} + α_m a_n]·v dX with a_{n+1} from Newmark's update
@@ -102,7 +109,8 @@ class FingertipProblem:
         self.dx = ufl.Measure("dx", domain=msh, subdomain_data=fmesh.cell_tags,
                               metadata={"quadrature_degree": options.quadrature_degree})
         self.ds = ufl.Measure("ds", domain=msh, subdomain_data=fmesh.facet_tags)
-        self.V = fem.functionspace(msh, ("Lagrange", options.displacement_degree, (2,)))
+        self.gdim = msh.geometry.dim
+        self.V = fem.functionspace(msh, ("Lagrange", options.displacement_degree, (self.gdim,)))
         self.u = fem.Function(self.V, name="displacement")
         self.u_n = fem.Function(self.V, name="displacement_n")
         #: u at t_{n−1} and the weights (a₀, a₁, a₂) of J_{n+1}, J_n, J_{n−1} in Δt·dJ/dt of
@@ -198,8 +206,9 @@ class FingertipProblem:
         return self.inertia.residual(v)
 
     def _support(self, R_u: ufl.Form, v) -> tuple[list, fem.Form]:
-        """Clamp the rigid regions' nodes or, if none is rigid, the nail-centre patch; and the
-        reaction form: R_u tested with e_y on the clamped dofs only."""
+        """Clamp the rigid regions' nodes or, if none is rigid, the nail-centre patch; the 3D
+        rollers (`_rollers`); and the reaction form: R_u tested with e_y on the clamped dofs
+        only (the rollers carry no y-force)."""
         msh, V = self.mesh, self.V
         tdim = msh.topology.dim
         msh.topology.create_connectivity(tdim - 1, tdim)
@@ -212,9 +221,34 @@ class FingertipProblem:
             clamp_dofs = fem.locate_dofs_topological(V, tdim - 1, facets)
         self.clamped_dofs = clamp_dofs
         w = fem.Function(V)
-        w.x.array.reshape(-1, 2)[clamp_dofs, 1] = 1.0
+        w.x.array.reshape(-1, self.gdim)[clamp_dofs, 1] = 1.0
         reaction = fem.form(ufl.replace(R_u, {v: w}), entity_maps=self.entity_maps)
-        return [fem.dirichletbc(np.zeros(2), clamp_dofs, V)], reaction
+        bcs = [fem.dirichletbc(np.zeros(self.gdim), clamp_dofs, V), *self._rollers()]
+        return bcs, reaction
+
+    def _rollers(self) -> list:
+        """u_z = 0 on `proximal_cut`, u_x = 0 on `symmetry`, where the mesh has those tags."""
+        bcs, fdim = [], self.mesh.topology.dim - 1
+        for name, component in (("proximal_cut", 2), ("symmetry", 0)):
+            if name in self.tags and component < self.gdim:
+                sub = self.V.sub(component)
+                dofs = fem.locate_dofs_topological(
+                    sub, fdim, self.fmesh.facet_tags.find(self.tags[name]))
+                bcs.append(fem.dirichletbc(0.0, dofs, sub))
+        return bcs
+
+    @property
+    def mirror_factor(self) -> int:
+        """2 for a half model (a `symmetry` plane): its forces times 2 are the whole finger's."""
+        return 2 if "symmetry" in self.tags else 1
+
+    @property
+    def force_keys(self) -> tuple[str, str]:
+        """The diagnostics' names of the indenter force and the reaction: per unit length in
+        plane strain (N/mm), a force in 3D (N)."""
+        if self.gdim == 3:
+            return "force_N", "reaction_N"
+        return "force_N_per_mm", "reaction_N_per_mm"
 
     # --- what the recorder needs ---------------------------------------------------------------
     @property
@@ -247,8 +281,8 @@ class FingertipProblem:
         facets = self.fmesh.facet_tags.find(self.tags["pulp_surface"])
         nodes = fem.locate_dofs_topological(V, fdim, facets)
         nodes = nodes[nodes < V.dofmap.index_map.size_local]
-        X = V.tabulate_dof_coordinates()[nodes, :2]
-        return X, X + self.u.x.array.reshape(-1, 2)[nodes]
+        X = V.tabulate_dof_coordinates()[nodes, :self.gdim]
+        return X, X + self.u.x.array.reshape(-1, self.gdim)[nodes]
 
 
     # --- the Steppable protocol ---------------------------------------------------------------
@@ -294,8 +328,8 @@ class FingertipProblem:
         """Reference position (mm) of the displacement node with the largest residual force in
         `residual` (the solver's last residual vector: per rank, the owned u entries first),
         or None if the residual is not finite anywhere to compare."""
-        n = self.V.dofmap.index_map.size_local
-        r = residual.getArray(readonly=True)[: 2 * n].reshape(-1, 2)
+        n, d = self.V.dofmap.index_map.size_local, self.gdim
+        r = residual.getArray(readonly=True)[: d * n].reshape(-1, d)
         norms = np.linalg.norm(np.nan_to_num(r, nan=np.inf), axis=1)
         local = float(norms.max()) if len(norms) else -1.0
         comm = self.mesh.comm
@@ -303,10 +337,10 @@ class FingertipProblem:
         if not largest > 0:
             return None
         return from_holder(comm, local == largest,
-                           lambda: self.V.tabulate_dof_coordinates()[int(np.argmax(norms)), :2])
+                           lambda: self.V.tabulate_dof_coordinates()[int(np.argmax(norms)), :d])
 
     def support_reaction(self) -> float:
-        """The y-force (N/mm) the body passes to the clamped dofs (> 0 pushes them +y).
+        """The y-force (N/mm; N in 3D) the body passes to the clamped dofs (> 0 pushes +y).
 
         The residual at the clamped dofs is the force the clamp exerts on the body; the load
         on the support is its opposite. At equilibrium it equals the indenters' force.
@@ -317,10 +351,11 @@ class FingertipProblem:
     def diagnostics(self) -> dict[str, float]:
         forces = self.contact.forces()
         J_min, _ = self.min_jacobian()
+        force, reaction = self.force_keys
         return {
             "indentation_mm": self.indentation(self.time),
-            "force_N_per_mm": float(np.sum(forces)),
-            "reaction_N_per_mm": self.support_reaction(),
+            force: float(np.sum(forces)),
+            reaction: self.support_reaction(),
             "max_penetration_mm": self.max_penetration(),
             "min_J": J_min,
         }
@@ -338,7 +373,11 @@ class FingertipProblem:
         height exceeds s at its x. s is sampled from the displacement field itself at
         `TIP_SAMPLES` points per surface facet (not interpolated between nodes, whose chords
         cut into a round indenter by h²/8r and would be mistaken for penetration).
+        Plane strain only (sharp tips are a 2D concern): 0 in 3D, where the surface nodes'
+        penetration (`contact.max_penetration`) is the measure.
         """
+        if self.gdim == 3:
+            return 0.0
         x = self._deformed_pulp()
         depth = 0.0
         if self.mesh.comm.rank == 0 and len(x):

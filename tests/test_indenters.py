@@ -1,12 +1,13 @@
 """Indenter shapes: exact signed distances and normals (numpy and UFL alike), data validation."""
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 import ufl
 from dolfinx import fem
-from dolfinx.mesh import create_rectangle
+from dolfinx.mesh import create_box, create_rectangle
 from mpi4py import MPI
 from scipy.spatial import cKDTree
 
@@ -16,6 +17,7 @@ from fingertip_dolfinx.indenters import (
     Bar,
     Cylinder,
     Plate,
+    Sphere,
     Wedge,
     load_indenter,
     make_indenter,
@@ -155,7 +157,7 @@ def test_a_user_file_loads(tmp_path):
         ({"shape": "wedge", "tip_radius": 0.1, "base": 1.2, "height": 0.1},
          "does not exceed tip_radius"),
         ({"shape": "bar", "width": 1.0, "colour": "red"},
-         "colour: unknown key.*keys of a bar are: shape, centre_x, width"),
+         "colour: unknown key.*keys of a bar are: shape, centre_x, centre_z, axis, width"),
         ({"shape": "wedge", "base": 1.2}, "tip_radius, height: missing for a wedge"),
         ({"shape": "pyramid"}, "shape: got 'pyramid'.*one of wedge, bar, plate, cylinder"),
         ({"width": 1.0}, "shape: got None"),
@@ -167,7 +169,7 @@ def test_each_bad_value_gets_its_own_message(data, message):
 
 
 def test_a_missing_file_names_the_builtins_and_where_they_are():
-    with pytest.raises(InputError, match=r"no such file.*bar, cylinder, plate, wedge") as info:
+    with pytest.raises(InputError, match=r"no such file.*bar, cylinder, plate, sphere, wedge") as info:
         load_indenter("pyramid")
     assert str(BUILTIN_DIR) in str(info.value)
 
@@ -177,3 +179,89 @@ def test_bad_toml_is_reported_with_its_path(tmp_path):
     path.write_text("shape = bar\n")
     with pytest.raises(InputError, match="not valid TOML"):
         load_indenter(path)
+
+
+# ---- 3D: prisms along z or x, the sphere -----------------------------------------------------
+
+SPHERE = Sphere(radius=2.0, centre_x=0.3, centre_z=0.7)
+SHAPES_3D = [SPHERE, Cylinder(radius=2.0, centre_x=0.5, axis="x", centre_z=1.0),
+             Wedge(tip_radius=0.025, base=1.2, height=3.0, centre_x=0.3, axis="x", centre_z=-0.4),
+             Bar(width=1.0, centre_x=-0.2), Plate(axis="x")]
+
+
+def random_points_3d(n=300, seed=2):
+    rng = np.random.default_rng(seed)
+    return np.column_stack((rng.uniform(-1.5, 1.5, n), rng.uniform(-2.5, 0.6, n),
+                            rng.uniform(-1.5, 1.5, n)))
+
+
+def test_sphere_distance_matches_brute_force_and_normal_is_its_gradient():
+    points = random_points_3d()
+    phi, n = SPHERE.signed_distance_np(points, Y_TIP)
+    # Dense points on the sphere (a Fibonacci lattice, spacing ~ 2 R sqrt(π/N) = 3.5e-3 mm):
+    # the nearest of them is within spacing²/(8 R) ≈ 1e-6 mm of the exact distance... plus
+    # the lattice's holes, half the spacing at most: compare at 2e-3 mm.
+    k = np.arange(1_000_000) + 0.5
+    polar, azimuth = np.arccos(1 - 2 * k / len(k)), math.pi * (1 + 5**0.5) * k
+    centre = np.array([SPHERE.centre_x, Y_TIP - SPHERE.radius, SPHERE.centre_z])
+    surface = centre + SPHERE.radius * np.column_stack(
+        (np.sin(polar) * np.cos(azimuth), np.sin(polar) * np.sin(azimuth), np.cos(polar)))
+    nearest, _ = cKDTree(surface).query(points)
+    assert np.abs(np.abs(phi) - nearest).max() < 2e-3
+    assert np.allclose(np.linalg.norm(n, axis=1), 1.0)
+    assert_normal_is_gradient(SPHERE, points, n)
+
+
+def assert_normal_is_gradient(shape, points, n, step=1e-6):
+    for k in range(3):
+        shift = np.zeros(3)
+        shift[k] = step
+        fd = (shape.signed_distance_np(points + shift, Y_TIP)[0]
+              - shape.signed_distance_np(points - shift, Y_TIP)[0]) / (2 * step)
+        assert np.allclose(fd, n[:, k], atol=1e-5)
+
+
+@pytest.mark.parametrize("shape", SHAPES_3D[1:], ids=lambda s: f"{s.shape}-{s.axis}")
+def test_prisms_in_3d_are_the_2d_profile_extruded_along_their_axis(shape):
+    """A "z" prism: φ(x, y, z) = φ2D(x, y), n = (n_x, n_y, 0). An "x" prism: the profile in the
+    (z, y) plane at z = centre_z: φ = φ2D(centre_x + z − centre_z, y), n = (0, n_y, n_a)."""
+    points = random_points_3d()
+    phi, n = shape.signed_distance_np(points, Y_TIP)
+    a = points[:, 0] if shape.axis == "z" else shape.centre_x + points[:, 2] - shape.centre_z
+    phi2, n2 = dataclasses.replace(shape, axis="z").signed_distance_np(
+        np.column_stack((a, points[:, 1])), Y_TIP)
+    assert np.allclose(phi, phi2, rtol=0, atol=1e-14)  # a: the same sum in another order
+    expected = (np.column_stack((n2, np.zeros(len(a)))) if shape.axis == "z"
+                else np.column_stack((np.zeros(len(a)), n2[:, 1], n2[:, 0])))
+    assert np.allclose(n, expected, rtol=0, atol=1e-14)
+    assert np.allclose(np.linalg.norm(n, axis=1), 1.0)
+    smooth = np.abs(a - shape.centre_x) > 1e-3  # the axis plane is a medial surface
+    assert_normal_is_gradient(shape, points[smooth], n[smooth])
+
+
+@pytest.mark.parametrize("shape", SHAPES_3D, ids=lambda s: f"{s.shape}-{getattr(s, 'axis', '')}")
+def test_ufl_and_numpy_agree_in_3d(shape):
+    domain = create_box(MPI.COMM_WORLD, [[-1.5, -2.0, -1.0], [1.5, 0.5, 1.5]], [4, 4, 4])
+    V = fem.functionspace(domain, ("Lagrange", 2, (3,)))
+    u = fem.Function(V)
+    u.interpolate(lambda x: np.vstack((0.05 * np.sin(x[1]), 0.1 * x[0] * x[1], 0.07 * x[2] * x[0])))
+    x = ufl.SpatialCoordinate(domain) + u
+    phi, n = shape.signed_distance(x, fem.Constant(domain, Y_TIP))
+    reference_points = np.array([[0.25, 0.25, 0.25], [0.1, 0.2, 0.3], [0.6, 0.2, 0.1]])
+    expr = fem.Expression(ufl.as_vector((x[0], x[1], x[2], phi, n[0], n[1], n[2])),
+                          reference_points)
+    cells = np.arange(domain.topology.index_map(3).size_local, dtype=np.int32)
+    values = expr.eval(domain, cells).reshape(-1, 7)
+    phi_np, n_np = shape.signed_distance_np(values[:, :3], Y_TIP)
+    assert np.allclose(values[:, 3], phi_np, atol=1e-13)
+    assert np.allclose(values[:, 4:], n_np, atol=1e-12)
+
+
+def test_sphere_and_x_prisms_are_refused_in_2d_and_bad_axes_named():
+    with pytest.raises(InputError, match="sphere.*needs a 3D mesh"):
+        SPHERE.signed_distance_np(np.zeros((1, 2)), 0.0)
+    with pytest.raises(InputError, match="'x' prism.*needs a 3D mesh"):
+        Bar(width=1.0, axis="x").signed_distance_np(np.zeros((1, 2)), 0.0)
+    with pytest.raises(InputError, match="bar.axis: got 'y'"):
+        make_indenter({"shape": "bar", "width": 1.0, "axis": "y"})
+    assert load_indenter("sphere") == Sphere(radius=2.0)

@@ -144,3 +144,66 @@ def test_hencky_strain_and_principal_log_strains():
         # b = F Fᵀ itself carries ~1e-16 absolute round-off: that bounds any log strain.
         assert np.abs(got[:4] - ref.ravel()).max() <= 1e-13 * scale + 1e-15
         assert np.allclose(got[4:], [np.log(max(lam)), np.log(min(lam))], rtol=1e-12, atol=1e-12)
+
+
+# ---- 3D at a double eigenvalue away from C ∝ I (uniaxial, equibiaxial, confined) ----------
+
+ROTATION = np.linalg.qr(np.random.default_rng(1).normal(size=(3, 3)))[0]
+DOUBLE = {
+    "diag(a,b,b)": np.diag([1.7, 0.6, 0.6]),
+    "diag(a,a,b)": np.diag([1.3, 1.3, 0.5]),
+    "confined diag(1,l2,1)": np.diag([1.0, 0.7**2, 1.0]),
+    "rotated diag(a,b,b)": ROTATION @ np.diag([1.7, 0.6, 0.6]) @ ROTATION.T,
+    "rotated, split 1e-3": ROTATION @ np.diag([1.7, 0.6, 0.6 + 1e-3]) @ ROTATION.T,
+    "random": ROTATION @ np.diag([1.4, 0.9, 0.5]) @ ROTATION.T,
+}
+
+
+@pytest.mark.parametrize("name", DOUBLE)
+@pytest.mark.parametrize("H", [H3, np.diag([1.0, 0.0, 0.0]), np.eye(3)], ids=["H3", "e11", "I"])
+def test_eigen_sum_3d_exact_at_a_double_eigenvalue(exact3, name, H):
+    """Value, first and second directional derivatives against Daleckii–Krein: exact to
+    round-off at and near r = ±1, where the acos form has 1/sqrt(1 − r²) (NaN before)."""
+    got = exact3(DOUBLE[name], H)
+    assert np.all(np.isfinite(got))
+    assert np.all(rel(got, spectral_reference(DOUBLE[name], H)) < 1e-11)
+
+
+def test_eigen_sum_3d_continuous_across_the_pair_switch(exact3):
+    """|r| = PAIR_SWITCH separates the Cardano and the pair-series branches: on both sides
+    of it the value and both derivatives match Daleckii–Krein to round-off."""
+    # diag(1 + d, 1, 1 − d') with the middle eigenvalue moved: r sweeps through 0.9.
+    for c2 in np.linspace(0.55, 0.75, 41):
+        C = ROTATION @ np.diag([1.7, c2, 0.5]) @ ROTATION.T
+        assert np.all(rel(exact3(C, H3), spectral_reference(C, H3)) < 1e-11), c2
+
+
+@pytest.fixture(scope="module")
+def gradient3():
+    """S = 2 ∂/∂C Σ f(c_a) as a compiled 3×3 expression of a constant C."""
+    msh = mesh.create_unit_square(MPI.COMM_SELF, 1, 1)
+    C0 = fem.Constant(msh, np.eye(3))
+    C = ufl.variable(C0 + 0.0 * ufl.Identity(3))
+    expr = fem.Expression(2 * ufl.diff(kin.eigen_sum(C, f), C), np.array([[1 / 3, 1 / 3]]))
+
+    def run(C_value):
+        C0.value[:] = C_value
+        return expr.eval(msh, CELL).reshape(3, 3)
+
+    return run
+
+
+@pytest.mark.parametrize("name", DOUBLE)
+def test_stress_and_tangent_of_the_3d_sum_at_a_double_eigenvalue(gradient3, name):
+    """2 ∂/∂C Σ f(c_a) = 2 Σ f'(c_a) N_a⊗N_a (closed form from numpy's eigenvectors, which
+    are arbitrary in the double eigenspace: the sum is not); its central finite difference
+    along H matches the exact second derivative (step 1e-4: O(h²) ≈ 1e-8 relative)."""
+    C = DOUBLE[name]
+    c, N = np.linalg.eigh(C)
+    closed = 2 * (N * (P * c ** (P - 1))) @ N.T
+    got = gradient3(C)
+    assert np.abs(got - closed).max() < 1e-12 * np.abs(closed).max()
+    h = 1e-4
+    fd = np.sum((gradient3(C + h * H3) - gradient3(C - h * H3)) * H3) / (4 * h)
+    exact = spectral_reference(C, H3)[2]
+    assert fd == pytest.approx(exact, rel=1e-7)

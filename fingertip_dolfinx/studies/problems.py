@@ -12,7 +12,9 @@ s, MPa; plane strain, so forces are per unit thickness (N/mm).
 - `Terzaghi`: the drained-top consolidation column and its exact pore pressure and settlement,
   after any time t (Terzaghi's series) and after one backward-Euler step.
 - `Hertz` and `HertzBlock`: a rigid cylinder pressed into a linear-elastic half block with
-  Nitsche contact, and the plane-strain Hertz half-width and peak pressure.
+  Nitsche contact, and the plane-strain Hertz half-width and peak pressure. `HertzSphere`: the
+  3D case, a rigid sphere on a quarter block (two symmetry planes), Hertz's contact radius and
+  peak pressure (forces in N).
 - `VibratingLayer`: a viscoelastic hyperfoam layer on a rigid base, laterally confined, its
   top shaken harmonically: the standing wave of uniaxial strain in closed form, the exact check
   of the frequency-domain route (`harmonic`: G*(ω), the mass, the real block form).
@@ -40,7 +42,7 @@ from .. import materials as mat
 from ..admissibility import Admissibility, Compaction
 from ..contact import NitscheContact, Obstacle, p_wave_modulus
 from ..harmonic import Linearisation, ViscousPart, complex_modulus, qlv_tangent
-from ..indenters import Cylinder
+from ..indenters import Cylinder, Sphere
 from ..inertia import Inertia
 from ..kinematics import deformation_gradient
 from ..loading import RampHold
@@ -208,7 +210,7 @@ def support_reaction(P, V, dofs) -> float:
 def _small_strain_stress(solid: mat.LinearElastic, u) -> ufl.core.expr.Expr:
     """σ = λ tr(ε) I + 2μ ε, ε = sym Grad u: exactly linear in u (the dynamics' exact checks)."""
     eps = ufl.sym(ufl.grad(u))
-    return solid.lmbda * ufl.tr(eps) * ufl.Identity(2) + 2 * solid.mu * eps
+    return solid.lmbda * ufl.tr(eps) * ufl.Identity(len(u)) + 2 * solid.mu * eps
 
 
 class ConfinedBlock:
@@ -226,6 +228,10 @@ class ConfinedBlock:
     or a node stops the time stepper with a `CompactionError`. The tissue's mass balance takes
     the time stepper's multistep weights (`rate_weights`, `u_nm1`: backward Euler or BDF2), as
     the fingertip's does.
+
+    `gdim = 3`: the column [0, W] × [0, H] × [0, W] of tetrahedra (nx × ny × nx boxes), rollers
+    also on z = 0 and z = W: the same one-dimensional state, whose C = diag(1, λ², 1) has a
+    double eigenvalue. Forces are then in N, the settlement the mean over the loaded area.
     """
 
     #: The axis along which `grading` shrinks the cells (towards its far end: the drained top).
@@ -234,9 +240,15 @@ class ConfinedBlock:
     def __init__(self, nx, ny, load, *, tissue=None, solid=None, prony=None, degree_u=2,
                  width=1.0, H=1.0, load_width=None, drained_top=False, top_displacement=False,
                  diagonal="right", compaction_margin=0.02, grading=1.0, density=None,
-                 small_strain=False, comm=MPI.COMM_SELF):
-        self.msh = mesh.create_rectangle(comm, [[0.0, 0.0], [width, H]], [nx, ny],
-                                         diagonal=getattr(mesh.DiagonalType, diagonal))
+                 small_strain=False, gdim=2, comm=MPI.COMM_SELF):
+        if gdim == 3:
+            self.msh = mesh.create_box(comm, [[0.0, 0.0, 0.0], [width, H, width]], [nx, ny, nx],
+                                       mesh.CellType.tetrahedron)
+        else:
+            self.msh = mesh.create_rectangle(comm, [[0.0, 0.0], [width, H]], [nx, ny],
+                                             diagonal=getattr(mesh.DiagonalType, diagonal))
+        self.gdim = gdim
+        self.fdim = gdim - 1
         if grading != 1.0:  # cells shrink geometrically towards the drained boundary
             axis, length = self.GRADED_AXIS, (width, H)[self.GRADED_AXIS]
             x = self.msh.geometry.x
@@ -244,7 +256,7 @@ class ConfinedBlock:
         self.W, self.H, self.load, self.tissue = width, H, load, tissue
         self.load_width = width if load_width is None else load_width
         self.top_displacement = top_displacement
-        V = fem.functionspace(self.msh, ("Lagrange", degree_u, (2,)))
+        V = fem.functionspace(self.msh, ("Lagrange", degree_u, (gdim,)))
         self.u, self.u_n, self.u_nm1 = fem.Function(V), fem.Function(V), fem.Function(V)
         self.rate_weights = fem.Constant(self.msh, np.array([1.0, -1.0, 0.0]))
         self.p = None if tissue is None else fem.Function(
@@ -267,21 +279,24 @@ class ConfinedBlock:
         self.bcs = self._bcs(drained_top)
         self.entity_maps = None
         self._last = [f.x.array.copy() for f in self.unknowns]
-        cells = np.arange(self.msh.topology.index_map(2).size_local, dtype=np.int32)
+        cells = np.arange(self.msh.topology.index_map(gdim).size_local, dtype=np.int32)
         self.admissibility = Admissibility(F, self.msh, QUADRATURE_DEGREE, None if tissue is None
                                            else Compaction(cells, tissue.phi0, compaction_margin,
                                                            tissue.permeability.k0))
-        self._J = fem.Expression(ufl.det(F), np.array([[1 / 3, 1 / 3]]))  # at the centroids
+        centroid = np.full((1, gdim), 1 / (gdim + 1))
+        self._J = fem.Expression(ufl.det(F), centroid)  # at the centroids
         self._settle = fem.form(-self.u[1] * self.ds(1))
 
     def _top_facets(self) -> np.ndarray:
-        return mesh.locate_entities_boundary(self.msh, 1, lambda x: np.isclose(x[1], self.H))
+        return mesh.locate_entities_boundary(self.msh, self.fdim,
+                                             lambda x: np.isclose(x[1], self.H))
 
     def _top_measure(self) -> ufl.Measure:
         """ds with the loaded part of the top (facet midpoints at x < load_width) tagged 1."""
         top = self._top_facets()
-        loaded = top[mesh.compute_midpoints(self.msh, 1, top)[:, 0] < self.load_width + 1e-12]
-        tags = mesh.meshtags(self.msh, 1, loaded, np.full(len(loaded), 1, dtype=np.int32))
+        loaded = top[mesh.compute_midpoints(self.msh, self.fdim, top)[:, 0]
+                     < self.load_width + 1e-12]
+        tags = mesh.meshtags(self.msh, self.fdim, loaded, np.full(len(loaded), 1, dtype=np.int32))
         return ufl.Measure("ds", domain=self.msh, subdomain_data=tags)
 
     def _residuals(self, P_e) -> list[ufl.Form]:
@@ -304,25 +319,28 @@ class ConfinedBlock:
 
     def _bcs(self, drained_top: bool) -> list[fem.DirichletBC]:
         """The rollers, the prescribed top u_y if the top is displaced, p = 0 if drained."""
-        msh, W = self.msh, self.W
-        sides = mesh.locate_entities_boundary(
-            msh, 1, lambda x: np.isclose(x[0], 0.0) | np.isclose(x[0], W))
-        bottom = mesh.locate_entities_boundary(msh, 1, lambda x: np.isclose(x[1], 0.0))
-        Vx, Vy = self.u.function_space.sub(0), self.u.function_space.sub(1)
-        bcs = [fem.dirichletbc(0.0, fem.locate_dofs_topological(Vx, 1, sides), Vx),
-               fem.dirichletbc(0.0, fem.locate_dofs_topological(Vy, 1, bottom), Vy)]
+        msh, W, fdim = self.msh, self.W, self.fdim
+        bottom = mesh.locate_entities_boundary(msh, fdim, lambda x: np.isclose(x[1], 0.0))
+        Vy = self.u.function_space.sub(1)
+        bcs = [fem.dirichletbc(0.0, fem.locate_dofs_topological(Vy, fdim, bottom), Vy)]
+        for k in (0, 2)[:self.gdim - 1]:  # the sides normal to x (and to z in 3D)
+            sides = mesh.locate_entities_boundary(
+                msh, fdim, lambda x, k=k: np.isclose(x[k], 0.0) | np.isclose(x[k], W))
+            Vk = self.u.function_space.sub(k)
+            bcs.append(fem.dirichletbc(0.0, fem.locate_dofs_topological(Vk, fdim, sides), Vk))
         if self.top_displacement:
             bcs.append(fem.dirichletbc(self.value, self._top_y_dofs, Vy))
         if drained_top:
             Q = self.p.function_space
-            bcs.append(fem.dirichletbc(0.0, fem.locate_dofs_topological(Q, 1, self._top_facets()),
-                                       Q))
+            bcs.append(fem.dirichletbc(
+                0.0, fem.locate_dofs_topological(Q, fdim, self._top_facets()), Q))
         return bcs
 
     @cached_property
     def _top_y_dofs(self) -> np.ndarray:
         """The top's y-dofs (indices into u's array)."""
-        return fem.locate_dofs_topological(self.u.function_space.sub(1), 1, self._top_facets())
+        return fem.locate_dofs_topological(self.u.function_space.sub(1), self.fdim,
+                                           self._top_facets())
 
     # Steppable --------------------------------------------------------------------------------
     def set_time(self, t):
@@ -388,7 +406,8 @@ class ConfinedBlock:
 
     def settlement(self) -> float:
         """Mean downward displacement of the loaded part of the top (mm)."""
-        return self.msh.comm.allreduce(fem.assemble_scalar(self._settle)) / self.load_width
+        area = self.load_width * (self.W if self.gdim == 3 else 1.0)
+        return self.msh.comm.allreduce(fem.assemble_scalar(self._settle)) / area
 
     @cached_property
     def _reaction_form(self) -> fem.Form:
@@ -404,7 +423,7 @@ class ConfinedBlock:
 
     def _jacobians(self) -> tuple[np.ndarray, np.ndarray]:
         """J at the owned cells' centroids, and the cells' centres."""
-        n = self.msh.topology.index_map(2).size_local
+        n = self.msh.topology.index_map(self.gdim).size_local
         cells = np.arange(n, dtype=np.int32)
         centres = self.msh.geometry.x[self.msh.geometry.dofmaps[0][cells]].mean(axis=1)
         return self._J.eval(self.msh, cells).reshape(n), centres
@@ -428,13 +447,13 @@ class ConfinedBlock:
         """(x, y) of the pressure nodes (mm) and p there (MPa), gathered from every rank."""
         Q, comm = self.p.function_space, self.msh.comm
         n = Q.dofmap.index_map.size_local
-        X = np.concatenate(comm.allgather(Q.tabulate_dof_coordinates()[:n, :2]))
+        X = np.concatenate(comm.allgather(Q.tabulate_dof_coordinates()[:n, :self.gdim]))
         return X, np.concatenate(comm.allgather(self.p.x.array[:n]))
 
     def pressure_at(self, y: np.ndarray) -> np.ndarray:
-        """p along the left edge x = 0 at heights y (P1: exact between its nodes)."""
+        """p along the left edge x = 0 (and z = 0) at heights y (P1: exact between its nodes)."""
         X, p = self.pressure_nodes()
-        left = np.isclose(X[:, 0], 0.0)
+        left = np.isclose(X[:, 0], 0.0) & (np.isclose(X[:, 2], 0.0) if self.gdim == 3 else True)
         order = np.argsort(X[left, 1])
         return np.interp(y, X[left, 1][order], p[left][order])
 
@@ -900,6 +919,118 @@ class HertzBlock:
         X, p, s = (np.concatenate(comm.allgather(a)) for a in (X, p, s))
         order = np.argsort(X[:, 0], kind="stable")
         return X[order, 0], p[order], s[order]
+
+
+@dataclass(frozen=True)
+class HertzSphere(Hertz):
+    """A rigid sphere of radius R pressed by `depth` into the face y = 0 of a linear-elastic
+    block [0, L]³: a quarter model (symmetry u_x = 0 at x = 0 and u_z = 0 at z = 0, the top
+    y = L fixed), small strain, Nitsche contact; the sphere touches at the origin.
+
+    Hertz (Johnson, Contact Mechanics, §4.2, eqs. 4.22–4.23): for the whole sphere's force P
+    (N), E* = E/(1 − ν²), a = (3PR/(4E*))^(1/3), p0 = 3P/(2πa²), and the depth δ = a²/R. The
+    default a/R = 0.05 keeps the strains ~ a/R small; L = 20a: the finite block adds to the
+    depth a near-rigid shift (~ P/(E* L)) but, to first order, leaves the pressure under the
+    sphere, hence a(P) and p0(P), unchanged (measured: a and p0 move by < 0.5 % from L = 20a
+    to 40a, see benchmarks/hertz_sphere.py).
+    """
+
+    a_target: float = 0.05  # mm
+    depth: float = 0.0025  # mm: a_target²/R
+    L: float = 1.0  # mm
+    SYMMETRY_Z: ClassVar[int] = 4
+
+    def theory(self, force: float) -> tuple[float, float]:
+        """Hertz contact radius a (mm) and peak pressure p0 (MPa) for the whole sphere's force."""
+        a = (3 * force * self.R * (1 - self.nu**2) / (4 * self.E)) ** (1 / 3)
+        return a, 3 * force / (2 * math.pi * a**2)
+
+    def stress(self, u):
+        mu = self.E / (2 * (1 + self.nu))
+        lmbda = self.E * self.nu / ((1 + self.nu) * (1 - 2 * self.nu))
+        eps = ufl.sym(ufl.grad(u))
+        return lmbda * ufl.tr(eps) * ufl.Identity(3) + 2 * mu * eps
+
+    def mesh(self, h_contact: float, comm=MPI.COMM_SELF):
+        """The quarter block (gmsh tetrahedra on rank 0), graded from h_contact within
+        2 a_target of the origin to L/4 beyond L/2; returns (mesh, facet tags)."""
+        import gmsh
+        from dolfinx.io.gmsh import model_to_mesh
+
+        gmsh.initialize()
+        gmsh.option.setNumber("General.Terminal", 0)
+        if comm.rank == 0:
+            self._gmsh_box(gmsh)
+            self._gmsh_grading(gmsh, h_contact)
+            gmsh.option.setNumber("Mesh.MeshSizeMax", self.L / 4)
+            gmsh.model.mesh.generate(3)
+        data = model_to_mesh(gmsh.model, comm, 0, gdim=3)
+        gmsh.finalize()
+        return data.mesh, data.facet_tags
+
+    def _gmsh_box(self, gmsh) -> None:
+        L = self.L
+        gmsh.model.add("quarter block")
+        occ = gmsh.model.occ
+        occ.addBox(0, 0, 0, L, L, L)
+        occ.synchronize()
+        for face in gmsh.model.getEntities(2):
+            x, y, z = occ.getCenterOfMass(*face)
+            tag = (self.BOTTOM if y < 1e-9 else self.TOP if y > L - 1e-9
+                   else self.SYMMETRY if x < 1e-9 else self.SYMMETRY_Z if z < 1e-9 else 0)
+            if tag:
+                gmsh.model.addPhysicalGroup(2, [face[1]], tag)
+        gmsh.model.addPhysicalGroup(3, [1], 1)
+
+    def block(self, domain, facet_tags, *, theta: int = 0, gamma0: float = 10.0,
+              modulus=None) -> HertzSphereBlock:
+        """The P2 displacement, the sphere (touching at the origin), the contact terms, the
+        residual and the supports (top clamped, the two symmetry planes on rollers)."""
+        V = fem.functionspace(domain, ("Lagrange", 2, (3,)))
+        u, v = fem.Function(V), ufl.TestFunction(V)
+        P = self.stress(u)
+        obstacle = Obstacle.at(domain, Sphere(radius=self.R), y_tip=0.0)
+        ds = ufl.Measure("ds", domain, subdomain_data=facet_tags)
+        contact = NitscheContact(u, P, ds(self.BOTTOM), [obstacle],
+                                 modulus=self.modulus if modulus is None else modulus,
+                                 theta=theta, gamma0=gamma0)
+        residual = ufl.inner(P, ufl.grad(v)) * ufl.dx + contact.residual(v)
+        fdim = domain.topology.dim - 1
+        top = fem.locate_dofs_topological(V, fdim, facet_tags.find(self.TOP))
+        bcs = [fem.dirichletbc(np.zeros(3), top, V)]
+        for tag, k in ((self.SYMMETRY, 0), (self.SYMMETRY_Z, 2)):
+            dofs = fem.locate_dofs_topological(V.sub(k), fdim, facet_tags.find(tag))
+            bcs.append(fem.dirichletbc(0.0, dofs, V.sub(k)))
+        return HertzSphereBlock(u, P, obstacle, contact, residual, bcs, facet_tags)
+
+
+@dataclass(frozen=True)
+class HertzSphereBlock(HertzBlock):
+    """A built quarter model of `HertzSphere`; forces are the whole sphere's (4 × the quarter)."""
+
+    def force(self) -> float:
+        """The sphere's push on the block (N)."""
+        return 4 * float(self.contact.forces()[0])
+
+    def reaction(self) -> float:
+        """The fixed top's y-reaction (N): −force at discrete equilibrium."""
+        V = self.u.function_space
+        top = self.facet_tags.find(Hertz.TOP)
+        dofs = fem.locate_dofs_topological(V.sub(1), V.mesh.topology.dim - 1, top)
+        return 4 * support_reaction(self.P, V, dofs)
+
+    def profile(self, points_per_facet: int = 7) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Along the radius on the contact face: the points of the facets on the symmetry line
+        z = 0 (and, the same by symmetry, on x = 0), gathered and sorted by their distance r
+        from the origin: r (mm), the Nitsche pressure and the trial pressure (MPa)."""
+        contact, comm = self.contact, self.u.function_space.mesh.comm
+        X, p = contact.sample(contact.pressure, points_per_facet=points_per_facet)
+        _, s = contact.sample(contact.trial_pressure, points_per_facet=points_per_facet)
+        on_line = (np.abs(X[:, 2]) < 1e-12) | (np.abs(X[:, 0]) < 1e-12)
+        r = np.hypot(X[on_line, 0], X[on_line, 2])
+        r, p, s = (np.concatenate(comm.allgather(a)) for a in (r, p[on_line], s[on_line]))
+        order = np.argsort(r, kind="stable")
+        return r[order], p[order], s[order]
 
 
 def contact_edge(x: np.ndarray, trial: np.ndarray) -> float:
