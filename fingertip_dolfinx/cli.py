@@ -227,10 +227,12 @@ def _run_scene(args) -> int:
     if mesh_tol is not None or args.max_levels is not None:
         return _run_adaptive(args, scene, mesh_tol)
     summary = run_scene(scene, args.out, resume=args.resume, progress=not args.quiet)
+    peak = (f"{summary['peak_force_N']:.4g} N" + (" (half model: x2 for the whole finger)"
+                                                   if summary["mirror_factor"] == 2 else "")
+            if "peak_force_N" in summary else f"{summary['peak_force_N_per_mm']:.4g} N/mm")
     _rank0_print(
         f"{scene.name}: {summary['time_steps']} steps, {summary['newton_iterations']} Newton "
-        f"iterations, {summary['wall_time_s']:.1f} s; peak force "
-        f"{summary['peak_force_N_per_mm']:.4g} N/mm, max penetration "
+        f"iterations, {summary['wall_time_s']:.1f} s; peak force {peak}, max penetration "
         f"{1e3 * summary['max_penetration_mm']:.3g} µm; results in {args.out}"
     )
     return 0

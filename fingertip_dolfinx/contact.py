@@ -169,6 +169,35 @@ class NitscheContact:
         e_y.x.array.reshape(-1, V.dofmap.index_map_bs)[:, 1] = 1.0
         return [fem.form(-self._term(i, e_y)) for i in range(len(self.obstacles))]
 
+    @cached_property
+    def _slab_force_form(self) -> tuple[fem.Form, fem.Constant]:
+        # The force on one slab a <= X_k < b of the surface: the force form's e_y times the
+        # slab's indicator (the residual is linear in the test function). One form for every
+        # slab: the bounds are Constants, so moving the slab never recompiles.
+        domain = self.u.function_space.mesh
+        X = ufl.SpatialCoordinate(domain)
+        bounds = fem.Constant(domain, np.zeros(3))  # (axis as a number, a, b)
+        along = sum(ufl.conditional(ufl.eq(bounds[0], k), X[k], 0.0)
+                    for k in range(domain.geometry.dim))
+        inside = ufl.conditional(ufl.And(ufl.ge(along, bounds[1]), ufl.lt(along, bounds[2])),
+                                 1.0, 0.0)
+        e_y = ufl.as_vector([inside if k == 1 else 0.0 for k in range(domain.geometry.dim)])
+        total = -sum(self._term(i, e_y) for i in range(len(self.obstacles)))
+        return fem.form(total), bounds
+
+    def line_force(self, axis: int, edges) -> np.ndarray:
+        """The y-force of all indenters per unit length along the reference coordinate `axis`
+        (N/mm in 3D): the force on each slab edges[k] <= X_axis < edges[k+1], divided by its
+        width. On a z-slab of a 3D finger it is what a plane-strain section carries."""
+        form, bounds = self._slab_force_form
+        comm = self.u.function_space.mesh.comm
+        edges = np.asarray(edges, dtype=float)
+        local = []
+        for a, b in zip(edges[:-1], edges[1:]):
+            bounds.value[:] = (axis, a, b)
+            local.append(fem.assemble_scalar(form))
+        return comm.allreduce(np.array(local, dtype=float), op=MPI.SUM) / np.diff(edges)
+
     def forces(self) -> np.ndarray:
         """The y-force each indenter exerts on the body (N/mm in plane strain, N in 3D; > 0
         pushes +y)."""

@@ -108,8 +108,9 @@ def plot_force_history(history: dict, path: Path, title: str = "") -> None:
     t = np.concatenate([[0.0], history["time_s"]])
     ax_d.plot(t, np.concatenate([[0.0], history["indenter_displacement_mm"]]), "k-")
     ax_d.set_ylabel("indentation (mm)")
-    ax_f.plot(t, np.concatenate([[0.0], history["force_N_per_mm"]]), "o-", ms=3)
-    ax_f.set_ylabel("force (N/mm)")
+    column, unit = force_column(history)
+    ax_f.plot(t, np.concatenate([[0.0], history[column]]), "o-", ms=3)
+    ax_f.set_ylabel(f"force ({unit})")
     ax_f.set_xlabel("time (s)")
     if t[-1] > 10:
         for ax in (ax_d, ax_f):
@@ -121,17 +122,43 @@ def plot_force_history(history: dict, path: Path, title: str = "") -> None:
     fig.savefig(path, dpi=150)
 
 
-def plot_surface_profiles(profile: dict, path: Path, title: str = "") -> None:
-    """Deflection of the pulp surface along x at each output time (cf. the paper's Fig. 2)."""
+def force_column(history: dict) -> tuple[str, str]:
+    """The force column of a history and its unit: N/mm in plane strain, N in 3D."""
+    return ("force_N", "N") if "force_N" in history else ("force_N_per_mm", "N/mm")
+
+
+def plot_surface_profiles(profile: dict, path: Path, title: str = "", along: str = "x") -> None:
+    """Deflection of the pulp surface along x (or z: `along`) at each output time (cf. the
+    paper's Fig. 2)."""
     fig = Figure(figsize=(6.4, 4.0))
     ax = fig.subplots()
+    key = f"{along}_mm"
     for t in np.unique(profile["time_s"]):
         rows = profile["time_s"] == t
-        order = np.argsort(profile["x_mm"][rows])
-        ax.plot(profile["x_mm"][rows][order], profile["deflection_mm"][rows][order],
+        order = np.argsort(profile[key][rows])
+        ax.plot(profile[key][rows][order], profile["deflection_mm"][rows][order],
                 label=f"t = {t:g} s")
-    ax.set_xlabel("x (mm), distance from the load axis")
+    ax.set_xlabel("x (mm), distance from the load axis" if along == "x" else
+                  "z (mm), along the finger from the proximal cut")
     ax.set_ylabel("surface deflection (mm)")
+    ax.set_title(title)
+    ax.grid(alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=150)
+
+
+def plot_line_force(line: dict, path: Path, title: str = "") -> None:
+    """A 3D run's y-force per unit length of finger f(z) at each output time: what a
+    plane-strain section carries where the finger is long and straight."""
+    fig = Figure(figsize=(6.4, 4.0))
+    ax = fig.subplots()
+    for t in np.unique(line["time_s"]):
+        rows = line["time_s"] == t
+        ax.step(line["z_mm"][rows], line["force_per_length_N_per_mm"][rows], where="mid",
+                label=f"t = {t:g} s")
+    ax.set_xlabel("z (mm), along the finger from the proximal cut")
+    ax.set_ylabel("force per unit length (N/mm)")
     ax.set_title(title)
     ax.grid(alpha=0.3)
     ax.legend()

@@ -25,6 +25,14 @@ HISTORY_COLUMNS = ("time_s", "indenter_displacement_mm", "force_N_per_mm", "newt
                    "dt_s", "reaction_N_per_mm", "max_penetration_mm", "min_J", "cuts",
                    "wall_time_s")
 SURFACE_COLUMNS = ("x_mm", "time_s", "deflection_mm")
+#: A 3D run's: forces in N (a half model's are its own half: summary.json's `mirror_factor`
+#: gives the whole finger's), profiles across and along the finger, f(z) per unit length.
+HISTORY_COLUMNS_3D = tuple({"force_N_per_mm": "force_N", "reaction_N_per_mm": "reaction_N"}
+                           .get(c, c) for c in HISTORY_COLUMNS)
+SURFACE_COLUMNS_3D = ("x_mm", "z_mm", "time_s", "deflection_mm")  # surface_across/along.csv
+DEPTH_COLUMNS_3D = ("x_mm", "z_mm", "depth_mm", "time_s", "u1_mm", "u2_mm", "u3_mm", "e11",
+                    "e22", "e33", "e12", "e_max", "e_min", "sed_MPa", "p_MPa")
+LINE_FORCE_COLUMNS = ("z_mm", "time_s", "force_per_length_N_per_mm")
 DEPTH_COLUMNS = ("x_mm", "depth_mm", "time_s", "u1_mm", "u2_mm", "e11", "e22", "e12", "e_max",
                  "e_min", "sed_MPa", "p_MPa")
 
@@ -181,8 +189,9 @@ class FieldWriters:
 
 
 def run_summary(out: Path, record: dict, mesh_report, dofs: int, ranks: int, *, converged: bool,
-                failure: str | None, wall: float, output_times) -> dict:
-    """summary.json's content, from the run's own history.csv and the scene's record."""
+                failure: str | None, wall: float, output_times, mirror_factor: int = 1) -> dict:
+    """summary.json's content, from the run's own history.csv and the scene's record.
+    3D runs' forces are in N; a half model's are its half (`mirror_factor` 2: the whole's)."""
     import platform
     import time
 
@@ -192,7 +201,8 @@ def run_summary(out: Path, record: dict, mesh_report, dofs: int, ranks: int, *, 
 
     h = read_csv(Path(out) / "history.csv")
     times = h.get("time_s", np.zeros(0))
-    force = h.get("force_N_per_mm", np.zeros(0))
+    unit = "N" if "force_N" in h else "N_per_mm"  # 3D: N; plane strain: N/mm
+    force = h.get(f"force_{unit}", np.zeros(0))
     forces_at = {f"{t:g}": (float(np.interp(t, times, force))
                             if len(times) and t <= times[-1] + 1e-9 else None)
                  for t in output_times}
@@ -214,8 +224,9 @@ def run_summary(out: Path, record: dict, mesh_report, dofs: int, ranks: int, *, 
         "converged": converged,
         "failure": failure,
         "end_time_s": float(times[-1]) if len(times) else 0.0,
-        "peak_force_N_per_mm": float(np.max(force)) if len(force) else None,
+        f"peak_force_{unit}": float(np.max(force)) if len(force) else None,
         "max_penetration_mm": float(np.max(h["max_penetration_mm"])) if len(times) else None,
-        "force_at_output_times_N_per_mm": forces_at,
+        f"force_at_output_times_{unit}": forces_at,
+        **({"mirror_factor": mirror_factor} if unit == "N" else {}),
         "written": time.strftime("%Y-%m-%dT%H:%M:%S"),
     }

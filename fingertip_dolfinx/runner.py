@@ -19,12 +19,23 @@ import numpy as np
 from mpi4py import MPI
 
 from .errors import ConvergenceError, InputError
-from .figures import plot_depth_profiles, plot_force_history, plot_surface_profiles
+from .figures import (
+    plot_depth_profiles,
+    plot_force_history,
+    plot_line_force,
+    plot_surface_profiles,
+)
+from .geometry3d import Fingertip3D
 from .mesh import build_mesh, write_xdmf
+from .mesh3d import build_mesh3d
 from .outputs import (
     DEPTH_COLUMNS,
+    DEPTH_COLUMNS_3D,
     HISTORY_COLUMNS,
+    HISTORY_COLUMNS_3D,
+    LINE_FORCE_COLUMNS,
     SURFACE_COLUMNS,
+    SURFACE_COLUMNS_3D,
     Checkpoint,
     CsvLog,
     FieldWriters,
@@ -34,7 +45,7 @@ from .outputs import (
     write_json,
 )
 from .pictures import field_pictures
-from .post import DerivedFields, FieldArrays, Profiles
+from .post import DerivedFields, FieldArrays, Profiles, Profiles3D
 from .problem import FingertipProblem
 from .receptors import ReceptorRecorder, load_receptors
 from .result import Result
@@ -97,9 +108,14 @@ class Run:
     def __init__(self, scene: Scene, out: Path, comm: MPI.Comm, *, resume: bool,
                  progress: bool):
         self.scene, self.comm, self.progress = scene, comm, progress
+        self.three_d = isinstance(scene.section, Fingertip3D)
+        if self.three_d and scene.outputs.receptors:
+            raise InputError(f"{scene.name}: output.receptors", "receptor sites are placed on "
+                             "the 2D section's depth curves; 3D runs do not sample them yet.",
+                             "leave output.receptors out of a 3D scene.")
         receptors = load_receptors(scene.outputs.receptors) if scene.outputs.receptors else None
         self.out = prepare_directory(out, comm)
-        self.fm = build_mesh(scene.section, comm)
+        self.fm = (build_mesh3d if self.three_d else build_mesh)(scene.section, comm)
         if not resume:
             write_xdmf(self.fm, self.out / "mesh.xdmf")
         self.problem = FingertipProblem(self.fm, scene.indenters, scene.history,
@@ -115,13 +131,9 @@ class Run:
         self.dofs = sum(f.function_space.dofmap.index_map.size_global
                         * f.function_space.dofmap.index_map_bs for f in self.problem.unknowns)
         after = self.start_time if resume else None
-        self.history = CsvLog(self.out / "history.csv", HISTORY_COLUMNS, comm, after)
-        self.surface = CsvLog(self.out / "surface_profile.csv", SURFACE_COLUMNS, comm, after)
-        self.depth = CsvLog(self.out / "depth_profiles.csv", DEPTH_COLUMNS, comm, after)
         self.derived = DerivedFields(self.problem.u, self.fm.cell_tags,
                                      self.problem.region_energies())
-        self.profiles = Profiles(self.problem, self.derived, scene.section.outer, scene.outputs)
-        self.arrays = FieldArrays(self.problem, self.derived)
+        self._open_logs(after)
         self.receptors = None if receptors is None else ReceptorRecorder(
             self.problem, self.derived, receptors, scene.section.outer, self.out, comm, after)
         self.fields = FieldWriters(self.out, comm, self._vtx_fields(),
@@ -131,6 +143,28 @@ class Run:
         self._bar = None
 
     # --- set-up ----------------------------------------------------------------------------
+    def _open_logs(self, after) -> None:
+        """The CSV files and their samplers: the section's profiles in 2D; in 3D, across and
+        along the finger through the load, and the force per unit length f(z)."""
+        scene, out, comm, p = self.scene, self.out, self.comm, self.problem
+        if not self.three_d:
+            self.history = CsvLog(out / "history.csv", HISTORY_COLUMNS, comm, after)
+            self.surfaces = {"": CsvLog(out / "surface_profile.csv", SURFACE_COLUMNS, comm,
+                                        after)}
+            self.depth = CsvLog(out / "depth_profiles.csv", DEPTH_COLUMNS, comm, after)
+            self.line_force = None
+            self.profiles = Profiles(p, self.derived, scene.section.outer, scene.outputs)
+            self.arrays = FieldArrays(p, self.derived)
+            return
+        self.history = CsvLog(out / "history.csv", HISTORY_COLUMNS_3D, comm, after)
+        self.surfaces = {d: CsvLog(out / f"surface_{d}.csv", SURFACE_COLUMNS_3D, comm, after)
+                         for d in ("across", "along")}
+        self.depth = CsvLog(out / "depth_profiles.csv", DEPTH_COLUMNS_3D, comm, after)
+        self.line_force = CsvLog(out / "line_force.csv", LINE_FORCE_COLUMNS, comm, after)
+        z_c, x_c = profile_position(scene)
+        self.profiles = Profiles3D(p, self.derived, scene.section, scene.outputs, z_c, x_c)
+        self.arrays = None  # the corner arrays and pictures are the 2D section's
+
     def _resume(self):
         """Load the checkpoint; returns the step options that continue with its step size."""
         p = self.problem
@@ -175,10 +209,12 @@ class Run:
         """Write what the accepted step produced (its state is the converged one)."""
         self.step_count += 1
         d = report.diagnostics
+        force, reaction = self.problem.force_keys
+        column_force, column_reaction = self.history.columns[2], self.history.columns[5]
         self.history.write([{
             "time_s": report.time, "indenter_displacement_mm": report.load,
-            "force_N_per_mm": d["force_N_per_mm"], "newton_iterations": report.newton_iterations,
-            "dt_s": report.dt, "reaction_N_per_mm": d["reaction_N_per_mm"],
+            column_force: d[force], "newton_iterations": report.newton_iterations,
+            "dt_s": report.dt, column_reaction: d[reaction],
             "max_penetration_mm": d["max_penetration_mm"], "min_J": d["min_J"],
             "cuts": report.cuts, "wall_time_s": report.wall_time_s}])
         at_output = any(abs(report.time - t) < 1e-9 for t in self.scene.output_times)
@@ -193,8 +229,13 @@ class Run:
         self._show(report)
 
     def _write_output_time(self, t: float) -> None:
-        self.surface.write(self.profiles.surface_rows(t))
+        for direction, log in self.surfaces.items():
+            log.write(self.profiles.surface_rows(t, *([direction] if direction else [])))
         self.depth.write(self.profiles.depth_rows(t))
+        if self.line_force is not None:
+            self.line_force.write(self.profiles.line_force_rows(t))
+        if self.arrays is None:
+            return
         arrays = self.arrays()  # updates the derived fields
         if self.comm.rank == 0:
             np.savez_compressed(self.out / f"fields_t{t:g}s.npz", time=t, **arrays)
@@ -211,14 +252,17 @@ class Run:
             return
         bar, task = self._bar
         d = report.diagnostics
+        force = self.problem.force_keys[0]
+        unit = "N" if self.three_d else "N/mm"
         bar.update(task, completed=report.time, status=(
-            f"F = {d['force_N_per_mm']:.4g} N/mm, {report.newton_iterations} its, "
+            f"F = {d[force]:.4g} {unit}, {report.newton_iterations} its, "
             f"Δt = {report.dt:.3g} s, pen. {1e3 * d['max_penetration_mm']:.2g} µm"))
 
     # --- the end ---------------------------------------------------------------------------
     def finish(self, converged: bool, failure: str | None, wall: float) -> dict:
         """Close every file, write summary.json and draw the figures; returns the summary."""
-        for log in (self.history, self.surface, self.depth, self.receptors):
+        for log in (self.history, *self.surfaces.values(), self.depth, self.line_force,
+                    self.receptors):
             if log is not None:
                 log.close()
         self.fields.close()
@@ -228,15 +272,18 @@ class Run:
         if self.comm.rank == 0:
             summary = run_summary(self.out, scene_record(self.scene), self.fm.report, self.dofs,
                                   self.comm.size, converged=converged, failure=failure,
-                                  wall=wall, output_times=self.scene.output_times)
+                                  wall=wall, output_times=self.scene.output_times,
+                                  mirror_factor=self.problem.mirror_factor)
             if self.scene.outputs.pictures:
                 _figures(self.out, self.scene.name)
+                if self.three_d:
+                    _figures_3d(self.out, self.scene.name)
         summary = self.comm.bcast(summary, root=0)
         write_json(self.out / "summary.json", summary, self.comm)
-        if converged and summary["peak_force_N_per_mm"] is not None and not (
-                summary["peak_force_N_per_mm"] > 0):
+        peak = summary.get("peak_force_N", summary.get("peak_force_N_per_mm"))
+        if converged and peak is not None and not peak > 0:
             warnings.warn(f"{self.scene.name}: the indenters never pressed on the skin (peak "
-                          f"force {summary['peak_force_N_per_mm']:g} N/mm).", NoContactWarning,
+                          f"force {peak:g}).", NoContactWarning,
                           stacklevel=2)
         return summary
 
@@ -247,9 +294,12 @@ def check_reach(problem, scene: Scene) -> None:
     The indenters move together; the first touch sets the zero of the indentation. An
     indenter placed off the pulp (or far beside a sharper one) may never reach the surface:
     that run would end with a force from the others only, or none, and say nothing.
+    A half model's mirror image counts: the indenter at −x of a symmetric pair presses it.
     """
     X, _ = problem.pulp_nodes()
     points = np.concatenate(problem.mesh.comm.allgather(X))
+    if problem.mirror_factor == 2:  # a half model: its mirror image presses the other side
+        points = np.concatenate([points, points * [-1.0, 1.0, 1.0]])
     y_deepest = problem.y_touch + scene.history.deepest
     for i, indenter in enumerate(scene.indenters):
         clearance = float(np.min(indenter.signed_distance_np(points, y_deepest)[0]))
@@ -262,15 +312,40 @@ def check_reach(problem, scene: Scene) -> None:
                 f"{scene.section.outer.a:g} mm) or indent deeper.")
 
 
+def _figures_3d(out: Path, name: str) -> None:
+    """A 3D run's surface deflection across and along the finger and f(z) (rank 0)."""
+    for direction, along in (("across", "x"), ("along", "z")):
+        s = read_csv(out / f"surface_{direction}.csv")
+        if s:
+            plot_surface_profiles(s, out / f"surface_{direction}.png",
+                                  title=f"{name}: {direction} the finger", along=along)
+    f = read_csv(out / "line_force.csv")
+    if f:
+        plot_line_force(f, out / "line_force.png", title=name)
+
+
 def _figures(out: Path, name: str) -> None:
     """The curves of the run, from its own CSV files (rank 0)."""
     h = read_csv(out / "history.csv")
     if h:
         plot_force_history(h, out / "force_history.png", title=name)
-    s = read_csv(out / "surface_profile.csv")
+    s = read_csv(out / "surface_profile.csv") if (out / "surface_profile.csv").exists() else {}
     if s:
         plot_surface_profiles(s, out / "surface_profile.png", title=name)
     d = read_csv(out / "depth_profiles.csv")
     if d:
         for t in np.unique(d["time_s"]):
             plot_depth_profiles(d, out / f"depth_profiles_t{t:g}s.png", t, title=name)
+
+
+def profile_position(scene: Scene) -> tuple[float, float]:
+    """(z_c, x_c) of a 3D run's profiles: the cross-section z_c (`output.section_z`, else a
+    sphere's or an across-prism's centre_z, else the middle of the cylindrical part) and the
+    line x_c of the along-finger profile (the first indenter's centre_x; 0 for an x prism)."""
+    first = scene.indenters[0]
+    along_x = getattr(first, "axis", "z") == "x"
+    placed = first.shape == "sphere" or along_x
+    z_c = scene.outputs.section_z
+    if z_c is None:
+        z_c = first.centre_z if placed else 0.5 * scene.section.cylinder_length
+    return z_c, 0.0 if along_x else first.centre_x

@@ -18,6 +18,7 @@ from pathlib import Path
 from .datafiles import builtin_dir, find, read_toml
 from .errors import InputError
 from .geometry import Section, load_section
+from .geometry3d import Fingertip3D, load_fingertip3d, section_dimension
 from .harmonic import HarmonicOptions
 from .indenters import Indenter, load_indenter, make_indenter
 from .linear_solvers import check_linear
@@ -49,6 +50,9 @@ class Outputs:
     field_every: int = 1
     pictures: bool = True
     receptors: str = ""
+    #: 3D only: z (mm) of the cross-section with the across-finger profiles and depth curves
+    #: (default: a sphere's or across-prism's centre_z, else mid-cylinder).
+    section_z: float | None = None
 
     def __post_init__(self):
         if not isinstance(self.pictures, bool):
@@ -100,7 +104,7 @@ class Scene:
     """One experiment: everything a run needs, validated. Defaults: the paper's materials
     (`wu2004`), the default model and step options, outputs at the protocol's end."""
 
-    section: Section
+    section: Section | Fingertip3D  # a 2D section (plane strain) or a 3D fingertip
     indenters: list[Indenter]
     history: LoadHistory
     materials: Tissues = WU2004
@@ -148,6 +152,16 @@ class Scene:
             raise InputError(f"{self.name}: output.profile_half_width",
                              f"{o.profile_half_width} mm must lie in (0, {self.section.outer.a}) "
                              "(the section's half-width).")
+        z = o.section_z
+        if z is None:
+            return
+        if not isinstance(self.section, Fingertip3D):
+            raise InputError(f"{self.name}: output.section_z", "is for 3D fingertips only.",
+                             "leave it out of a 2D scene.")
+        if not 0 < z < self.section.cylinder_length:
+            raise InputError(f"{self.name}: output.section_z", f"{z} mm must lie in (0, "
+                             f"{self.section.cylinder_length}) (the cylindrical part, whose "
+                             "cross-section is the 2D section).", "pick a z on it.")
 
     # The names the run and the studies read.
     @property
@@ -257,7 +271,9 @@ def scene_from_dict(data: dict, where: str = "scene") -> Scene:
     """A scene from the tables of a scene file."""
     check_keys(where, data, TABLES, what="table")
     section_data = dict(data.get("section", {}))
-    section = load_section(section_data.pop("file", "male-index"), overrides=section_data)
+    source = section_data.pop("file", "male-index")
+    loader = load_fingertip3d if section_dimension(source) == 3 else load_section
+    section = loader(source, overrides=section_data)
     indenters = _indenters(data, where)
     return Scene(
         name=str(data.get("name", Path(where).stem)),
