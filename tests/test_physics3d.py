@@ -151,3 +151,30 @@ def test_layered_block_indenter_force_equals_support_reaction(block, indenter):
     np.testing.assert_allclose(reaction, force, rtol=1e-8, atol=DEFAULT_PETSC_OPTIONS["snes_atol"])
     assert np.max(np.abs(problem.p.x.array)) > 0
     assert max(r.diagnostics["max_penetration_mm"] for r in reports) < 0.01 * history.depth
+
+
+# ---- derived fields in 3D ------------------------------------------------------------------------
+
+@pytest.mark.parametrize("stretches", [(1.2, 0.8, 0.8), (1.3, 0.9, 0.7), (1.0, 1.0, 1.0)])
+def test_derived_fields_in_3d_are_the_spectral_log_strain(stretches):
+    """A homogeneous F = V R: ½ ln b = Q diag(ln λ) Qᵀ, principal (ln λ_max, ln λ_min), also at
+    a double eigenvalue (uniaxial) and at F = I, where they are exactly 0."""
+    from dolfinx import fem, mesh
+
+    from fingertip_dolfinx.post import DerivedFields
+
+    msh = mesh.create_unit_cube(MPI.COMM_SELF, 1, 1, 1)
+    Q = np.linalg.qr(np.random.default_rng(3).normal(size=(3, 3)))[0]
+    c, s = math.cos(0.4), math.sin(0.4)
+    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    F = Q @ np.diag(stretches) @ Q.T @ R
+    u = fem.Function(fem.functionspace(msh, ("Lagrange", 1, (3,))))
+    u.interpolate(lambda x: (F - np.eye(3)) @ x)
+    tags = mesh.meshtags(msh, 3, np.arange(6, dtype=np.int32), np.ones(6, dtype=np.int32))
+    derived = DerivedFields(u, tags, {1: fem.Constant(msh, 0.0)})
+    derived.update()
+    expected = Q @ np.diag(np.log(stretches)) @ Q.T
+    got = derived.log_strain.x.array.reshape(-1, 3, 3)
+    assert np.abs(got - expected).max() < 1e-13
+    principal = derived.principal.x.array.reshape(-1, 2)
+    assert np.allclose(principal, np.log([max(stretches), min(stretches)]), rtol=0, atol=1e-13)
