@@ -49,6 +49,7 @@ _API = {
     # geometry, mesh, indenters, protocols
     "Section": "geometry", "MeshOptions": "geometry", "load_section": "geometry",
     "build_mesh": "mesh",
+    "Fingertip3D": "geometry3d", "load_fingertip3d": "geometry3d", "build_mesh3d": "mesh3d",
     "Wedge": "indenters", "Bar": "indenters", "Cylinder": "indenters", "Plate": "indenters",
     "load_indenter": "indenters",
     "RampHold": "loading", "PiecewiseLinear": "loading", "Sinusoid": "loading",
