@@ -129,8 +129,11 @@ def block():
     return layered_block(MPI.COMM_WORLD)
 
 
+# The bar's forms compile for ~4 min on a cold cache (the sphere's are shared with
+# test_run3d.py's): it runs with the slow studies.
 @pytest.mark.parametrize("indenter", [Sphere(radius=2.0, centre_z=3.0),
-                                      Bar(width=1.0, axis="x", centre_z=3.0)],
+                                      pytest.param(Bar(width=1.0, axis="x", centre_z=3.0),
+                                                   marks=pytest.mark.slow)],
                          ids=["sphere", "bar-x"])
 def test_layered_block_indenter_force_equals_support_reaction(block, indenter):
     history = RampHold(0.3, 1.0, 1.5)
