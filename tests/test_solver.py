@@ -120,6 +120,7 @@ def test_viscoelastic_skin_strip_relaxes_as_the_prony_series():
         assert by_time[t] / by_time[1.0] == pytest.approx(ratio, abs=0.006)
 
 
+@pytest.mark.mpi
 def test_jacobian_reuse_reaches_the_same_states_with_fewer_factorisations():
     """StepOptions.jacobian_reuse keeps the Jacobian (and its LU factorisation) for the next
     Newton iteration after one that cut the residual norm by 50x or more. That changes the path
