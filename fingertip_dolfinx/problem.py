@@ -79,6 +79,8 @@ TIP_SAMPLES = 9
 #: The tags a fingertip mesh must carry.
 REQUIRED_TAGS = (*REGIONS, "pulp_surface", "nail_centre")
 DEFAULT_OPTIONS = ModelOptions()
+#: See `FingertipProblem.jit_options`.
+JIT_OPTIONS_3D = {"cffi_extra_compile_args": ["-O1"]}
 
 
 class FingertipProblem:
@@ -110,6 +112,11 @@ class FingertipProblem:
                               metadata={"quadrature_degree": options.quadrature_degree})
         self.ds = ufl.Measure("ds", domain=msh, subdomain_data=fmesh.facet_tags)
         self.gdim = msh.geometry.dim
+        #: Compiler flags of the Newton forms (solver.TimeStepper passes them on): None, the
+        #: defaults, in 2D. The 3D hyperfoam's Jacobian (three principal stretches with their
+        #: series branches, per term and region) is a very long C function: gcc -O2 spent more
+        #: than 10 min on it here, -O1 161 s (most of it FFCx), at the same assembly speed.
+        self.jit_options = JIT_OPTIONS_3D if self.gdim == 3 else None
         self.V = fem.functionspace(msh, ("Lagrange", options.displacement_degree, (self.gdim,)))
         self.u = fem.Function(self.V, name="displacement")
         self.u_n = fem.Function(self.V, name="displacement_n")

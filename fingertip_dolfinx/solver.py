@@ -251,6 +251,7 @@ class TimeStepper:
             kind="mpi",
             petsc_options_prefix=prefix,
             petsc_options=opts,
+            jit_options=getattr(problem, "jit_options", None),
         )
         self.snes = self.nonlinear.solver
         self.linear.attach(self.nonlinear, prefix, opts)
