@@ -80,7 +80,7 @@ TIP_SAMPLES = 9
 REQUIRED_TAGS = (*REGIONS, "pulp_surface", "nail_centre")
 DEFAULT_OPTIONS = ModelOptions()
 #: See `FingertipProblem.jit_options`.
-JIT_OPTIONS_3D = {"cffi_extra_compile_args": ["-O1"]}
+JIT_OPTIONS_3D = {"cffi_extra_compile_args": ["-O1", "-g0"]}
 
 
 class FingertipProblem:

@@ -33,8 +33,10 @@ def test_the_force_balances_the_support_at_every_step(probe_run):
     h = read_csv(out / "history.csv")
     assert summary["converged"] and summary["mirror_factor"] == 2
     assert np.all(h["force_N"] > 0)
-    # Equilibrium: the indenter's force is the supports' reaction, to Newton's tolerance.
-    np.testing.assert_allclose(h["reaction_N"], h["force_N"], rtol=1e-6, atol=1e-8)
+    # Equilibrium: the indenter's force is the supports' reaction, to Newton's tolerance: the
+    # residual's 2-norm (≤ snes_atol = 1e-8 N) summed over the n ≤ 100 dofs that carry the
+    # load differs by at most √n·atol.
+    np.testing.assert_allclose(h["reaction_N"], h["force_N"], rtol=0, atol=10 * 1e-8)
     assert summary["peak_force_N"] == pytest.approx(h["force_N"].max())
 
 
