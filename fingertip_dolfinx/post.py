@@ -242,12 +242,11 @@ class Profiles3D:
     cylindrical part's cross-section is the 2D outer ellipse) and the indenters' y-force per
     unit length of finger, f(z) (N/mm: what a plane-strain section would carry).
 
-    Surface points lie on the exact outer surface, up to `SURFACE_PADDING` outside the faceted
-    mesh (chord sag h²/8R: 3 µm for 0.4 mm facets on the 7 mm pulp): they are evaluated in the
-    nearest cell. Rows are returned on rank 0 (empty elsewhere).
+    Surface points lie on the exact outer surface, outside the faceted mesh by up to the chord
+    sag h²/8R (h the section's max_size, R the smallest radius of curvature): they are
+    evaluated in the nearest cell within 1.5 times that distance. Rows are returned on rank 0
+    (empty elsewhere).
     """
-
-    SURFACE_PADDING = 0.05  # mm
 
     def __init__(self, problem, derived: DerivedFields, tip, outputs, z_c: float, x_c: float):
         self.problem, self.derived, self.outputs = problem, derived, outputs
@@ -274,7 +273,8 @@ class Profiles3D:
         a, b = tip.outer_semi_axes(z)
         y = tip.outer.cy - b * np.sqrt(np.clip(1 - (x / a) ** 2, 0.0, None))
         points = np.column_stack([x, y, z])
-        return points, PointSampler(self.problem.mesh, points, self.SURFACE_PADDING)
+        sag = tip.section.mesh.max_size**2 / (8 * tip.outer.min_curvature_radius)
+        return points, PointSampler(self.problem.mesh, points, 1.5 * sag)
 
     def surface_rows(self, t: float, direction: str) -> list[dict]:
         """u_y on the pulp surface "across" (z = z_c) or "along" (x = x_c) the finger."""

@@ -55,11 +55,17 @@ def test_the_surface_is_pushed_most_under_the_probe(probe_run):
     scene, out, _ = probe_run
     along = read_csv(out / "surface_along.csv")
     across = read_csv(out / "surface_across.csv")
+    assert not np.any(np.isnan(along["deflection_mm"]))  # every point found in the mesh
     h = 0.8  # mm, the mesh size under the load: the resolution of the peak's position
     assert abs(along["z_mm"][np.argmax(along["deflection_mm"])] - 3.0) < h
     assert across["x_mm"][np.argmax(across["deflection_mm"])] < h
-    # The pulp's lowest point rises by the indentation (to the penetration allowed).
-    assert np.nanmax(along["deflection_mm"]) == pytest.approx(scene.history.deepest, abs=0.02)
+    # The pulp's lowest point rises with the probe: by the indentation, to within the sag of
+    # a facet under the exact surface where it is sampled (h²/8R, R = 6.125 mm), the P2
+    # surface's freedom between the contact quadrature points on the sphere (h²/8R_s,
+    # R_s = 2 mm: 0.8 mm facets on a 1.1 mm contact radius) and the penetration allowed.
+    summary = json.loads((out / "summary.json").read_text())
+    bound = h**2 / (8 * 6.125) + h**2 / (8 * 2.0) + summary["max_penetration_mm"]
+    assert np.max(along["deflection_mm"]) == pytest.approx(scene.history.deepest, abs=bound)
 
 
 def test_the_depth_profiles_lie_in_the_probes_cross_section(probe_run):
