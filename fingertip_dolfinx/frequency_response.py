@@ -244,8 +244,8 @@ def run_frequency_response(scene: Scene, out: str | Path, *, frequencies=None,
         plot_impedance(rows, out / "impedance.png", scene.name)
         plot_receptor_transfer(site_rows, out, population, scene.name)
         plot_threshold_curves(curves, out / "thresholds.png", title=(
-            f"{scene.name}: afferent thresholds from the frequency response about the "
-            f"{options.state} state at {pressing.depth:g} mm (most sensitive site)"))
+            f"{scene.name}, {options.state} at {pressing.depth:g} mm: most sensitive site; "
+            "shaded: published best bands"))
     comm.barrier()  # every file is written when any rank returns (rank 0 draws)
     return summary
 
