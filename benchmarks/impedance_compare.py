@@ -32,9 +32,12 @@ def load(directory: Path) -> dict:
 
 def table_lines(label: str, run: dict, at) -> list[str]:
     f = np.array([r["frequency_Hz"] for r in run["rows"]])
-    first = run["resonances"]
-    head = (f"| {label} | {first['force_driven'][0] if first['force_driven'] else '-'} | "
-            f"{first['probe_held'][0] if first['probe_held'] else '-'} |")
+    # the first zero of K, then the first pole above it (a broad maximum of |K| below the
+    # first zero, the fast Prony terms' stiffening overtaken by inertia, is no resonance)
+    zeros = run["resonances"]["force_driven"]
+    poles = [f for f in run["resonances"]["probe_held"] if not zeros or f > zeros[0]]
+    head = (f"| {label} | {f'{zeros[0]:.4g}' if zeros else '-'} | "
+            f"{f'{poles[0]:.4g}' if poles else '-'} |")
     cells = []
     for target in at:
         i = int(np.argmin(np.abs(f - target)))

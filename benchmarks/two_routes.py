@@ -71,7 +71,7 @@ def reference_stiffness(scene, frequency: float, middle: float, args) -> complex
     mm in Re K; coarse mesh, fast-relaxation set)."""
     hold = scene.history.hold_time + middle
     *same, extra = args
-    held = scene_at(*same, [*extra, f"protocol.hold_time={hold!r}"])
+    held = scene_at(*same, [*extra, f"protocol.hold_time={float(hold)!r}"])
     _, (response,) = small_signal_response(held, [frequency], state="held")
     return response.stiffness
 
