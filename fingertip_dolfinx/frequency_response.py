@@ -13,10 +13,16 @@ r"""The frequency route of a scene: pressed state, then the small-signal respons
    the drive to the stimulus quantities of `receptors.QUANTITIES` (sed, compressive_strain =
    −e_min, compressive_stress = −σ22 total), amplitude per µm of drive and phase (degrees), at
    the sites of the scene's `[output] receptors` set ("default" if none);
-5. summary.json (pressed state, mesh, dofs, timings, the resonances seen: `resonances`) and
+5. the afferent thresholds these transfer functions give (`vibrotactile.vibration_thresholds`
+   per class, the class's quantity H(ω) at each of its sites and its pressed value s0 from
+   receptors.csv, the stimulus quantities at the sites in the pressed state): thresholds.csv,
+   one row per class, site and frequency, with I0 (absolute) and I1 (1:1 entrainment) in µm of
+   probe displacement (NaN where s0 alone fires, inf where the site cannot follow);
+6. summary.json (pressed state, mesh, dofs, timings, the resonances seen: `resonances`) and
    the figures
-   impedance.png (Bode plot of Z) and receptor_transfer_<class>.png (amplitude over position
-   and frequency).
+   impedance.png (Bode plot of Z), receptor_transfer_<class>.png (amplitude over position
+   and frequency) and thresholds.png (the most sensitive site's I0 and I1 per class, with the
+   verified published bands, `vibrotactile.PUBLISHED`).
 
 **Transfer functions** (`SiteTransfer`). Each quantity q is a nonlinear function of the state;
 its small-signal change is the directional derivative δq = Dq[δu] (and −δp for the total
@@ -58,15 +64,18 @@ from .kinematics import principal_log_strains
 from .loading import RampHold, Vibration
 from .mesh import build_mesh
 from .outputs import CsvLog, prepare_directory, write_json
-from .post import PointSampler, QuadratureProjection, accepted_stress
+from .post import DerivedFields, PointSampler, QuadratureProjection, accepted_stress
 from .problem import FingertipProblem
-from .receptors import CLASSES, QUANTITIES, load_receptors, pressure_sampling
+from .receptors import CLASSES, QUANTITIES, ReceptorRecorder, load_receptors, pressure_sampling
 from .scene import Scene, scene_record
+from .vibrotactile import plot_threshold_curves, vibration_thresholds
 
 RESPONSE_COLUMNS = ("frequency_Hz", "K_abs_N_per_mm2", "K_phase_deg", "Z_abs_Ns_per_mm2",
                     "Z_phase_deg", "K_real", "K_imag", "solve_s")
 TRANSFER_COLUMNS = ("frequency_Hz", "class", "index", "x_mm", "depth_mm", *(
     f"{q}_{part}" for q in QUANTITIES for part in ("abs_per_um", "phase_deg")))
+THRESHOLD_COLUMNS = ("class", "index", "x_mm", "depth_mm", "frequency_Hz", "s0",
+                     "H_abs_per_um", "I0_um", "I1_um")
 #: Drive unit of the transfer tables: per µm of indenter motion.
 PER_UM = 1e-3
 
@@ -202,18 +211,20 @@ def run_frequency_response(scene: Scene, out: str | Path, *, frequencies=None,
     pressed = press(problem, pressing, options.state, scene.steps, scene.petsc_options)
     show(f"pressed: {pressed.force:.4g} N/mm after {pressed.steps} steps "
          f"({pressed.wall_time_s:.1f} s)")
+    pressed_sites = record_pressed_sites(problem, population, scene, out, comm, pressed.time)
     solver = HarmonicSolver(linearise(problem))
     sites = population.sites(scene.section.outer)
     transfer = SiteTransfer(problem, sites.points)
     response_log = CsvLog(out / "frequency_response.csv", RESPONSE_COLUMNS, comm)
     transfer_log = CsvLog(out / "receptor_transfer.csv", TRANSFER_COLUMNS, comm)
-    rows, site_rows = [], []
+    rows, site_rows, transfers = [], [], []
     try:
         for k, f in enumerate(freqs):
             r = solver.solve(f)
             rows.append(response_row(r))
             response_log.write([rows[-1]])
-            site_rows += transfer_rows(f, transfer(r), sites)
+            transfers.append(transfer(r))
+            site_rows += transfer_rows(f, transfers[-1], sites)
             transfer_log.write(site_rows[len(site_rows) - len(sites):] if comm.rank == 0 else [])
             show(f"[{k + 1}/{len(freqs)}] {f:.4g} Hz: |Z| = {abs(r.impedance):.4g} N·s/mm², "
                  f"phase {math.degrees(np.angle(r.impedance)):.1f}° ({r.wall_time_s:.2f} s)")
@@ -221,12 +232,20 @@ def run_frequency_response(scene: Scene, out: str | Path, *, frequencies=None,
         response_log.close()
         transfer_log.close()
         solver.close()
+    curves = None
+    if comm.rank == 0:
+        curves = afferent_thresholds(population, sites, freqs, transfers, pressed_sites,
+                                     out / "thresholds.csv")
+        show(f"thresholds of {len(sites)} sites at {len(freqs)} frequencies: thresholds.csv")
     summary = _summary(scene, fm, dofs, pressed, solver, rows, options, comm,
                        wallclock.perf_counter() - started)
     write_json(out / "summary.json", summary, comm)
     if comm.rank == 0 and scene.outputs.pictures:
         plot_impedance(rows, out / "impedance.png", scene.name)
         plot_receptor_transfer(site_rows, out, population, scene.name)
+        plot_threshold_curves(curves, out / "thresholds.png", title=(
+            f"{scene.name}, {options.state} at {pressing.depth:g} mm: most sensitive site; "
+            "shaded: published best bands"))
     comm.barrier()  # every file is written when any rank returns (rank 0 draws)
     return summary
 
@@ -246,6 +265,52 @@ def small_signal_response(scene: Scene, frequencies, state: str = "held",
         return pressed, solver.sweep(parse_frequencies(frequencies))
     finally:
         solver.close()
+
+
+def record_pressed_sites(problem, population, scene, out: Path, comm, t: float):
+    """The stimulus quantities at the population's sites in the pressed state, written as
+    receptors.csv (one row per site, time = the pressed state's) and returned (rank 0; None
+    elsewhere): the s0 the probe vibrates about."""
+    derived = DerivedFields(problem.u, problem.fmesh.cell_tags, problem.region_energies())
+    recorder = ReceptorRecorder(problem, derived, population, scene.section.outer, out, comm)
+    try:
+        rows = recorder.sample(t)
+        if rows is not None:
+            recorder.log.write(rows)
+        return rows
+    finally:
+        recorder.close()
+
+
+def afferent_thresholds(population, sites, freqs, transfers: list[dict], pressed: list[dict],
+                        path: Path) -> list:
+    """Per class, `vibrotactile.vibration_thresholds` of the mechanics' transfer functions at
+    the class's sites (H: the class's quantity per mm of drive, `transfers` per frequency) about
+    their pressed values (`pressed`: receptors.csv rows); thresholds.csv written (rank 0).
+    Returns the VibrationThresholds, one per class present."""
+    curves, rows = [], []
+    for cls in population.classes:
+        mine = np.flatnonzero(sites.cls == cls.name)
+        if len(mine) == 0:
+            continue
+        column, sign, _ = QUANTITIES[cls.quantity]
+        s0 = np.array([sign * pressed[i][column] for i in mine])
+        # transfers carry the compression-positive sign already (SiteTransfer)
+        h = np.array([t[cls.quantity][mine] for t in transfers])
+        th = vibration_thresholds(cls, freqs, h, s0)
+        curves.append(th)
+        for j, f in enumerate(freqs):
+            rows += [{"class": cls.name, "index": int(sites.index[i]), "x_mm": sites.x[i],
+                      "depth_mm": sites.depth[i], "frequency_Hz": f, "s0": s0[k],
+                      "H_abs_per_um": abs(h[j, k]) * PER_UM,
+                      "I0_um": th.absolute[j, k] / PER_UM,
+                      "I1_um": th.entrainment[j, k] / PER_UM} for k, i in enumerate(mine)]
+    log = CsvLog(path, THRESHOLD_COLUMNS, MPI.COMM_SELF)
+    try:
+        log.write(rows)
+    finally:
+        log.close()
+    return curves
 
 
 def response_row(r) -> dict:

@@ -152,12 +152,21 @@ class Vibration:
 
         d(t) = depth · t/ramp_time                               0 <= t <= ramp_time
              = depth                                              ramp_time <= t <= t_on
-             = depth + Σ_k A_k sin(2π f_k (t − t_on))             t_on <= t <= end_time
+             = depth + w(t − t_on) Σ_k A_k sin(2π f_k (t − t_on))  t_on <= t <= end_time
 
     with t_on = ramp_time + hold_time (the `pressing` part is a `RampHold` ending at t_on) and
     `cycles` periods of the slowest frequency after it. `amplitudes` (mm) and `frequencies` (Hz)
-    pair up (a sum of sinusoids; one of each is a pure tone). The vibration starts at the pressed
-    depth with the velocity Σ 2π f_k A_k: t_on is a kink of the load (a breakpoint).
+    pair up (a sum of sinusoids; one of each is a pure tone). Without a fade (w = 1) the
+    vibration starts at the pressed depth with the velocity Σ 2π f_k A_k: t_on is a kink of the
+    load (a breakpoint), and the jump in velocity strikes every free mode of the fingertip.
+
+    `fade_in` (periods of the slowest frequency, counted within `cycles`) lets the amplitude rise
+    over T_f = fade_in/min(f_k) along w(s) = x − sin(2πx)/(2π), x = s/T_f (1 after T_f): w, w'
+    and w'' are continuous at both ends (C2), so the load has no kink, and w' is a Hann window,
+    whose spectrum falls as 1/(Δf T_f)³ beyond its main lobe |Δf| < 2/T_f: a free mode of the
+    fingertip at f_n ≠ f_k is struck with a relative strength of that order instead of O(1)
+    (the two-routes comparison, benchmarks/two_routes.py, needs a steady state of a nearly
+    undamped model).
     """
 
     depth: float
@@ -166,6 +175,7 @@ class Vibration:
     amplitudes: tuple[float, ...]
     frequencies: tuple[float, ...]
     cycles: float = 10.0
+    fade_in: float = 0.0
 
     def __post_init__(self):
         for name in ("amplitudes", "frequencies"):
@@ -188,6 +198,10 @@ class Vibration:
                              f"{sum(abs(a) for a in self.amplitudes):g} mm reaches the pressed "
                              f"depth {self.depth:g} mm: the probe would leave the skin.",
                              "use smaller amplitudes or press deeper.")
+        if not 0 <= self.fade_in < self.cycles:
+            raise InputError("protocol.fade_in", f"fade_in = {self.fade_in} periods for cycles "
+                             f"= {self.cycles}: the fade must fit in the vibration.",
+                             "use 0 <= fade_in < cycles (periods of the slowest frequency).")
 
     @property
     def onset(self) -> float:
@@ -208,16 +222,26 @@ class Vibration:
         """The shortest period (s): dynamic steps must resolve it."""
         return 1.0 / max(self.frequencies)
 
+    @property
+    def fade_end(self) -> float:
+        """When the amplitude has risen to its full value (s): t_on + fade_in/min(f_k)."""
+        return self.onset + self.fade_in / min(self.frequencies)
+
+    def envelope(self, s: float) -> float:
+        """w(s), s = t − t_on: the C2 rise x − sin(2πx)/(2π) over the fade, then 1."""
+        x = s / (self.fade_end - self.onset) if self.fade_in > 0 else 1.0
+        return 1.0 if x >= 1.0 else max(x, 0.0) - math.sin(2 * math.pi * x) / (2 * math.pi)
+
     def __call__(self, t: float) -> float:
         if t <= self.onset:
             return self.pressing(t)
         s = t - self.onset
-        return self.depth + sum(a * math.sin(2 * math.pi * f * s)
-                                for a, f in zip(self.amplitudes, self.frequencies))
+        return self.depth + self.envelope(s) * sum(
+            a * math.sin(2 * math.pi * f * s) for a, f in zip(self.amplitudes, self.frequencies))
 
     @property
     def breakpoints(self) -> tuple[float, ...]:
-        marks = {0.0, self.ramp_time, self.onset, self.end_time}
+        marks = {0.0, self.ramp_time, self.onset, self.fade_end, self.end_time}
         if len(self.frequencies) == 1:  # a pure tone: its peaks and zero crossings
             quarter = 0.25 / self.frequencies[0]
             n = int(round((self.end_time - self.onset) / quarter))

@@ -617,6 +617,12 @@ class ReceptorRecorder:
                 json.dumps(population.record(), indent=2) + "\n")
 
     def write(self, t: float) -> None:
+        rows = self.sample(t)
+        if rows is not None:
+            self.log.write(rows)
+
+    def sample(self, t: float) -> list[dict] | None:
+        """The rows of receptors.csv for the current state (rank 0; None elsewhere)."""
         self.derived.update()
         self.stress.update()
         sed = self.sampler(self.derived.sed)
@@ -624,16 +630,14 @@ class ReceptorRecorder:
         sigma = self.sampler(self.stress.stress)
         p = self.pressure(self.problem.p) if self.pressure is not None else None
         if self.comm.rank != 0:
-            return
+            return None
         p = (np.full(len(self.sites), np.nan) if p is None
              else np.where(self.in_tissue, p[:, 0], np.nan))
         total = sigma[:, 3] - np.nan_to_num(p)  # σ22 − p where there is a pore pressure
         s = self.sites
-        self.log.write([
-            {"time_s": t, "class": s.cls[i], "index": int(s.index[i]), "x_mm": s.x[i],
-             "depth_mm": s.depth[i], "sed_MPa": sed[i, 0], "e_min": principal[i, 1],
-             "sigma22_MPa": total[i], "p_MPa": p[i]}
-            for i in range(len(s))])
+        return [{"time_s": t, "class": s.cls[i], "index": int(s.index[i]), "x_mm": s.x[i],
+                 "depth_mm": s.depth[i], "sed_MPa": sed[i, 0], "e_min": principal[i, 1],
+                 "sigma22_MPa": total[i], "p_MPa": p[i]} for i in range(len(s))]
 
     def close(self) -> None:
         self.log.close()

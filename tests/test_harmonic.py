@@ -254,4 +254,34 @@ def test_run_writes_the_frequency_route(shared_tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["pressed_state"]["kind"] == "held" and summary["dofs"] > 0
     assert (out / "impedance.png").exists() and (out / "receptor_transfer_PC.png").exists()
+    _check_thresholds(out, sites)
     assert main(["run", "vibrotactile", "--frequencies", "0:1:3", "--out", str(out)]) == 2
+
+
+def _check_thresholds(out, sites):
+    """thresholds.csv comes from the route's own transfer functions: its |H| is the class's
+    quantity in receptor_transfer.csv at the same site and frequency, and I0·|H| (the
+    threshold at the site, in the quantity's units) is the same at every site for the classes
+    whose neuron does not read the pressed value (RA, PC: rate and acceleration weights only),
+    since the probe threshold scales exactly as 1/|H| (vibrotactile.py)."""
+    import csv
+
+    from fingertip_dolfinx.receptors import load_receptors
+
+    population = load_receptors()
+    rows = list(csv.DictReader((out / "thresholds.csv").open()))
+    assert len(rows) == len(sites) and (out / "thresholds.png").exists()
+    pressed = list(csv.DictReader((out / "receptors.csv").open()))
+    assert len(pressed) == len(sites) // 3  # the pressed state, one row per site
+    transfer = {(s["class"], s["index"], s["frequency_Hz"]): s for s in sites}
+    at_site = {}
+    for r in rows:
+        quantity = population[r["class"]].quantity
+        h = float(transfer[r["class"], r["index"], r["frequency_Hz"]][f"{quantity}_abs_per_um"])
+        assert float(r["H_abs_per_um"]) == pytest.approx(h, rel=1e-9)
+        if r["class"] in ("RA", "PC") and r["I0_um"]:
+            at_site.setdefault((r["class"], r["frequency_Hz"]), []).append(
+                float(r["I0_um"]) * h)
+    assert at_site
+    for values in at_site.values():
+        assert max(values) == pytest.approx(min(values), rel=1e-9)

@@ -60,3 +60,25 @@ def test_vibration_from_a_scene_table_and_its_errors():
         Vibration(1.0, 1.0, 0.0, (0.05, 0.01), (100.0,))
     with pytest.raises(InputError, match="must be positive"):
         Vibration(1.0, 1.0, 0.0, (0.05,), (-5.0,))
+
+
+def test_fade_in_rises_smoothly_to_the_full_tone():
+    """w = x − sin(2πx)/2π: the load, its velocity and its acceleration are continuous at the
+    onset and at the fade's end (C2), and the tone is the unfaded one after the fade."""
+    faded = Vibration(1.0, 1.0, 1.0, (0.05,), (100.0,), cycles=6, fade_in=4)
+    plain = Vibration(1.0, 1.0, 1.0, (0.05,), (100.0,), cycles=6)
+    assert faded.fade_end == pytest.approx(2.04) and faded.fade_end in faded.breakpoints
+    for t in (2.045, 2.0537, 2.06):
+        assert faded(t) == pytest.approx(plain(t), rel=1e-15)
+    h = 1e-6  # one-sided differences of d: jumps in d' or d'' would show at O(1)/O(1/h)
+    for t0 in (faded.onset, faded.fade_end):
+        left = [faded(t0 - k * h) for k in (0, 1, 2)]
+        right = [faded(t0 + k * h) for k in (0, 1, 2)]
+        assert (right[1] - right[0]) / h == pytest.approx((left[0] - left[1]) / h, abs=1e-3)
+        acc_r = (right[2] - 2 * right[1] + right[0]) / h**2
+        acc_l = (left[0] - 2 * left[1] + left[2]) / h**2
+        assert abs(acc_r - acc_l) < 0.05 * (2 * math.pi * 100) ** 2 * 0.05
+    # unfaded: the onset velocity jumps to 2π f A
+    assert (plain(2.0 + h) - plain(2.0)) / h == pytest.approx(2 * math.pi * 100 * 0.05, rel=1e-3)
+    with pytest.raises(InputError, match="fade must fit"):
+        Vibration(1.0, 1.0, 0.0, (0.05,), (100.0,), cycles=4, fade_in=4)

@@ -1,9 +1,12 @@
 """The two routes to the vibrating fingertip agree: the time-domain run (inertia, generalised-α)
 fitted at its steady state equals the small-signal frequency response about the same held
-state. At 10 Hz with the fast-relaxation skin (its 4 ms and 70 ms Prony terms damp the start-up
-transients within the first periods) and a 1 µm drive (linear: the second-order response is
-~A/depth = 1e-3 of the first), the issue's 2 % holds; measured 0.52 % in modulus and 0.27° in
-phase (benchmarks/two_routes.py, which also runs 100 and 250 Hz)."""
+state (held to the middle of the fitting window: the slow QLV terms relax on). At 10 Hz with
+the fast-relaxation skin, a quiet start (press and hold in 10 ms steps, so the ramp's kink
+leaves no ringing of the 49 Hz mode) and a 1 µm drive (linear: the second-order response is
+~A/depth = 1e-3 of the first), the issue's 2 % holds; measured 0.16 % in modulus and 0.09° in
+phase, 0.28 % between two fitting windows. The integrator's period error, (ωΔt)²/12 ~ 0.2 % of
+the frequency at 40 steps a period, matters only where K is steep: 100 and 250 Hz need a fade-in
+over tens of periods and two step sizes, minutes each: benchmarks/two_routes.py (README)."""
 
 import math
 import sys
