@@ -199,3 +199,18 @@ def test_a_run_without_pictures_writes_the_numbers_only(tmp_path, monkeypatch):
               progress=False, comm=MPI.COMM_SELF)
     assert (tmp_path / "1pt" / "depth_profiles.csv").exists()
     assert not list((tmp_path / "1pt").glob("*.png"))
+
+
+@pytest.mark.parametrize("name", ["line-load-3d", "2pt-3d", "probe-3d"])
+def test_the_3d_scenes_load_with_a_3d_fingertip(name):
+    from fingertip_dolfinx.geometry3d import Fingertip3D
+
+    scene = load_scene(name)
+    assert isinstance(scene.section, Fingertip3D) and scene.section.half
+
+
+def test_section_z_is_refused_in_2d_and_off_the_cylinder():
+    with pytest.raises(InputError, match="3D fingertips only"):
+        load_scene("1pt", ["output.section_z=5.0"])
+    with pytest.raises(InputError, match="cylindrical part"):
+        load_scene("probe-3d", ["output.section_z=18.0"])
