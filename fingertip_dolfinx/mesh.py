@@ -357,10 +357,15 @@ def _report(section: Section, seconds: float) -> MeshReport:
     names = [gmsh.model.mesh.getElementProperties(t)[0] for t in types]
     if section.mesh.quadrilateral and names != ["Quadrilateral 4"]:
         raise RuntimeError(f"recombination left non-quadrilateral cells: {names}")
-    tags = np.concatenate(elements)
+    cell_type = "quadrilateral" if section.mesh.quadrilateral else "triangle"
+    return element_report(np.concatenate(elements), cell_type, seconds)
+
+
+def element_report(tags: np.ndarray, cell_type: str, seconds: float) -> MeshReport:
+    """Counts, quality and edge lengths of the gmsh elements `tags` (2D and 3D meshes)."""
     quality = gmsh.model.mesh.getElementQualities(tags, "minSICN")
     return MeshReport(
-        cell_type="quadrilateral" if section.mesh.quadrilateral else "triangle",
+        cell_type=cell_type,
         num_cells=len(tags),
         num_vertices=len(gmsh.model.mesh.getNodes()[0]),
         min_quality=float(quality.min()),

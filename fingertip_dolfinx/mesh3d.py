@@ -43,7 +43,7 @@ import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
 from .geometry import Ellipse
 from .geometry3d import Fingertip3D, ellipsoid_distance
 from .mesh import (CELL_TAGS, FACET_TAGS_3D, SIZE_GROWTH, FingertipMesh, MeshReport, _add_nail,
-                   _ellipse_curve, _ellipse_loop, _gmsh_model, region_areas)
+                   _ellipse_curve, _ellipse_loop, _gmsh_model, element_report, region_areas)
 
 #: Sections of the lofted rounded ends (`_dome`), at alpha = 0 .. CAP_LAST_ANGLE (deg): with 12
 #: the skin on the cap is 0.798-0.804 mm thick (0.8 ideal; the module's docstring).
@@ -297,18 +297,7 @@ def _set_sizes(tip: Fingertip3D, regions, faces) -> None:
 
 def _report(seconds: float) -> MeshReport:
     _, elements, _ = gmsh.model.mesh.getElements(3)
-    tags = np.concatenate(elements)
-    quality = gmsh.model.mesh.getElementQualities(tags, "minSICN")
-    return MeshReport(
-        cell_type="tetrahedron",
-        num_cells=len(tags),
-        num_vertices=len(gmsh.model.mesh.getNodes()[0]),
-        min_quality=float(quality.min()),
-        mean_quality=float(quality.mean()),
-        min_edge=float(gmsh.model.mesh.getElementQualities(tags, "minEdge").min()),
-        max_edge=float(gmsh.model.mesh.getElementQualities(tags, "maxEdge").max()),
-        seconds=seconds,
-    )
+    return element_report(np.concatenate(elements), "tetrahedron", seconds)
 
 
 def cap_deviations(tip: Fingertip3D, samples: int = 30) -> dict[str, tuple[float, float]]:

@@ -188,6 +188,19 @@ def depth_curve(outer, depth: float, half_width: float, n: int,
     return x, np.column_stack([x, y]) - depth * normal
 
 
+def sample_curves(curves, problem, derived: DerivedFields):
+    """Per depth curve (depth, x0, sampler, pressure sampler): the sampled u, log strain,
+    principal log strains, SED and pore pressure (None without one), yielded on rank 0 only
+    (every rank samples: the samplers are collective)."""
+    derived.update()
+    for d, x0, sampler, sub in curves:
+        u, e = sampler(problem.u), sampler(derived.log_strain)
+        pe, w = sampler(derived.principal), sampler(derived.sed)
+        pp = sub(problem.p) if sub is not None else None
+        if problem.mesh.comm.rank == 0:
+            yield d, x0, u, e, pe, w, pp
+
+
 class Profiles:
     """The pulp surface's deflection and the depth profiles of one run, at output times.
 
@@ -218,14 +231,8 @@ class Profiles:
 
     def depth_rows(self, t: float) -> list[dict]:
         """Displacement, log strains, SED and pore pressure along each depth curve."""
-        self.derived.update()
-        p, rows = self.problem, []
-        for d, x0, sampler, sub in self.curves:
-            u, e = sampler(p.u), sampler(self.derived.log_strain)
-            pe, w = sampler(self.derived.principal), sampler(self.derived.sed)
-            pp = sub(p.p) if sub is not None else None
-            if self.comm.rank != 0:
-                continue
+        rows = []
+        for d, x0, u, e, pe, w, pp in sample_curves(self.curves, self.problem, self.derived):
             for i, xs in enumerate(x0):
                 rows.append({
                     "x_mm": xs, "depth_mm": d, "time_s": t, "u1_mm": u[i, 0], "u2_mm": u[i, 1],
@@ -287,14 +294,8 @@ class Profiles3D:
 
     def depth_rows(self, t: float) -> list[dict]:
         """Displacement, log strains, SED and pore pressure along each depth curve."""
-        self.derived.update()
-        p, rows = self.problem, []
-        for d, x0, sampler, sub in self.curves:
-            u, e = sampler(p.u), sampler(self.derived.log_strain)
-            pe, w = sampler(self.derived.principal), sampler(self.derived.sed)
-            pp = sub(p.p) if sub is not None else None
-            if self.comm.rank != 0:
-                continue
+        rows = []
+        for d, x0, u, e, pe, w, pp in sample_curves(self.curves, self.problem, self.derived):
             for i, xs in enumerate(x0):
                 rows.append({
                     "x_mm": xs, "z_mm": self.z_c, "depth_mm": d, "time_s": t,
