@@ -367,7 +367,6 @@ def _run_mesh(args) -> int:
         return _run_mesh3d(args)
     from mpi4py import MPI
     from rich.console import Console
-    from rich.table import Table
 
     from .figures import plot_tagged_mesh
     from .geometry import load_section
@@ -391,26 +390,34 @@ def _run_mesh(args) -> int:
     if comm.rank == 0:
         (args.out / "mesh_report.json").write_text(json.dumps(report, indent=2) + "\n")
 
-    r = fm.report
-    table = Table(title=f"mesh of '{section.name}' ({r.seconds:.2f} s on rank 0)")
-    for column in ("region", "area (mm²)", "exact (mm²)", "relative error"):
+    _print_mesh_report(console, fm.report, section.name, report["areas_mm2"], "area (mm²)",
+                       6, f"{fm.report.cell_type}s", args.out)
+    return 0
+
+
+def _print_mesh_report(console, r, name: str, measures: dict, measure: str, digits: int,
+                       cells: str, out) -> None:
+    """The region sizes against their closed forms, and the mesh's counts and quality."""
+    from rich.table import Table
+
+    table = Table(title=f"mesh of '{name}' ({r.seconds:.2f} s on rank 0)")
+    for column in ("region", measure, f"exact ({measure.split('(')[1]}", "relative error"):
         table.add_column(column, justify="right")
-    for name, a in report["areas_mm2"].items():
-        table.add_row(name, f"{a['mesh']:.6f}", f"{a['exact']:.6f}", f"{a['relative_error']:+.2e}")
+    for region, m in measures.items():
+        table.add_row(region, f"{m['mesh']:.{digits}f}", f"{m['exact']:.{digits}f}",
+                      f"{m['relative_error']:+.2e}")
     console.print(table)
     console.print(
-        f"{r.num_cells} {r.cell_type}s, {r.num_vertices} vertices; quality (minSICN) "
+        f"{r.num_cells} {cells}, {r.num_vertices} vertices; quality (minSICN) "
         f"min {r.min_quality:.3f}, mean {r.mean_quality:.3f}; edges {r.min_edge:.4f}–"
-        f"{r.max_edge:.4f} mm\nwrote {args.out}/mesh.xdmf (+ .h5), mesh.png, mesh_report.json"
+        f"{r.max_edge:.4f} mm\nwrote {out}/mesh.xdmf (+ .h5), mesh.png, mesh_report.json"
     )
-    return 0
 
 
 def _run_mesh3d(args) -> int:
     """`fingertip mesh` of a 3D fingertip file (`dimension = 3`): tetrahedra, the same outputs."""
     from mpi4py import MPI
     from rich.console import Console
-    from rich.table import Table
 
     from .fieldplots import plot_tagged_mesh3d
     from .geometry3d import load_fingertip3d
@@ -437,18 +444,8 @@ def _run_mesh3d(args) -> int:
     if comm.rank == 0:
         (args.out / "mesh_report.json").write_text(json.dumps(report, indent=2) + "\n")
 
-    r = fm.report
-    table = Table(title=f"mesh of '{tip.name}' ({r.seconds:.2f} s on rank 0)")
-    for column in ("region", "volume (mm³)", "exact (mm³)", "relative error"):
-        table.add_column(column, justify="right")
-    for name, v in report["volumes_mm3"].items():
-        table.add_row(name, f"{v['mesh']:.4f}", f"{v['exact']:.4f}", f"{v['relative_error']:+.2e}")
-    console.print(table)
-    console.print(
-        f"{r.num_cells} tetrahedra, {r.num_vertices} vertices; quality (minSICN) "
-        f"min {r.min_quality:.3f}, mean {r.mean_quality:.3f}; edges {r.min_edge:.4f}–"
-        f"{r.max_edge:.4f} mm\nwrote {args.out}/mesh.xdmf (+ .h5), mesh.png, mesh_report.json"
-    )
+    _print_mesh_report(console, fm.report, tip.name, report["volumes_mm3"], "volume (mm³)",
+                       4, "tetrahedra", args.out)
     return 0
 
 
