@@ -874,15 +874,8 @@ class Hertz:
         """The P2 displacement, the cylinder (touching at y = 0), the contact terms with
         γ = γ0 modulus/h (modulus: `self.modulus` unless given, e.g. a Constant to sweep γ0
         without recompiling), the residual and the supports."""
-        V = fem.functionspace(domain, ("Lagrange", 2, (2,)))
-        u, v = fem.Function(V), ufl.TestFunction(V)
-        P = self.stress(u)
-        obstacle = Obstacle.at(domain, Cylinder(radius=self.R), y_tip=0.0)
-        ds = ufl.Measure("ds", domain, subdomain_data=facet_tags)
-        contact = NitscheContact(u, P, ds(self.BOTTOM), [obstacle],
-                                 modulus=self.modulus if modulus is None else modulus,
-                                 theta=theta, gamma0=gamma0)
-        residual = ufl.inner(P, ufl.grad(v)) * ufl.dx + contact.residual(v)
+        V, u, P, obstacle, contact, residual = _contact_on_block(
+            self, domain, facet_tags, Cylinder(radius=self.R), theta, gamma0, modulus)
         fdim = domain.topology.dim - 1
         top = fem.locate_dofs_topological(V, fdim, facet_tags.find(self.TOP))
         side = fem.locate_dofs_topological(V.sub(0), fdim, facet_tags.find(self.SYMMETRY))
@@ -990,15 +983,8 @@ class HertzSphere(Hertz):
               modulus=None) -> HertzSphereBlock:
         """The P2 displacement, the sphere (touching at the origin), the contact terms, the
         residual and the supports (top clamped, the two symmetry planes on rollers)."""
-        V = fem.functionspace(domain, ("Lagrange", 2, (3,)))
-        u, v = fem.Function(V), ufl.TestFunction(V)
-        P = self.stress(u)
-        obstacle = Obstacle.at(domain, Sphere(radius=self.R), y_tip=0.0)
-        ds = ufl.Measure("ds", domain, subdomain_data=facet_tags)
-        contact = NitscheContact(u, P, ds(self.BOTTOM), [obstacle],
-                                 modulus=self.modulus if modulus is None else modulus,
-                                 theta=theta, gamma0=gamma0)
-        residual = ufl.inner(P, ufl.grad(v)) * ufl.dx + contact.residual(v)
+        V, u, P, obstacle, contact, residual = _contact_on_block(
+            self, domain, facet_tags, Sphere(radius=self.R), theta, gamma0, modulus)
         fdim = domain.topology.dim - 1
         top = fem.locate_dofs_topological(V, fdim, facet_tags.find(self.TOP))
         bcs = [fem.dirichletbc(np.zeros(3), top, V)]
@@ -1006,6 +992,21 @@ class HertzSphere(Hertz):
             dofs = fem.locate_dofs_topological(V.sub(k), fdim, facet_tags.find(tag))
             bcs.append(fem.dirichletbc(0.0, dofs, V.sub(k)))
         return HertzSphereBlock(u, P, obstacle, contact, residual, bcs, facet_tags)
+
+
+def _contact_on_block(hertz, domain, facet_tags, indenter, theta: int, gamma0: float, modulus):
+    """The Hertz blocks' common part (2D and 3D): P2 displacement, `hertz.stress`, the
+    indenter touching at y = 0 on the BOTTOM facets, the Nitsche terms and the residual."""
+    V = fem.functionspace(domain, ("Lagrange", 2, (domain.geometry.dim,)))
+    u, v = fem.Function(V), ufl.TestFunction(V)
+    P = hertz.stress(u)
+    obstacle = Obstacle.at(domain, indenter, y_tip=0.0)
+    ds = ufl.Measure("ds", domain, subdomain_data=facet_tags)
+    contact = NitscheContact(u, P, ds(hertz.BOTTOM), [obstacle],
+                             modulus=hertz.modulus if modulus is None else modulus,
+                             theta=theta, gamma0=gamma0)
+    residual = ufl.inner(P, ufl.grad(v)) * ufl.dx + contact.residual(v)
+    return V, u, P, obstacle, contact, residual
 
 
 @dataclass(frozen=True)
