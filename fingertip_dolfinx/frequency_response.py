@@ -208,7 +208,8 @@ def run_frequency_response(scene: Scene, out: str | Path, *, frequencies=None,
                * f.function_space.dofmap.index_map_bs for f in problem.unknowns)
     show = _printer(progress, comm)
     show(f"{scene.name}: {dofs} dofs; pressing to {pressing.depth:g} mm ({options.state})")
-    pressed = press(problem, pressing, options.state, scene.steps, scene.petsc_options)
+    pressed = press(problem, pressing, options.state, scene.steps, scene.petsc_options,
+                    linear=scene.linear)
     show(f"pressed: {pressed.force:.4g} N/mm after {pressed.steps} steps "
          f"({pressed.wall_time_s:.1f} s)")
     pressed_sites = record_pressed_sites(problem, population, scene, out, comm, pressed.time)
@@ -259,7 +260,8 @@ def small_signal_response(scene: Scene, frequencies, state: str = "held",
     that vibrates from the end of the protocol's hold (its drift frozen there)."""
     problem = FingertipProblem(build_mesh(scene.section, comm), scene.indenters, scene.history,
                                scene.materials, scene.model)
-    pressed = press(problem, pressing_of(scene), state, scene.steps, scene.petsc_options)
+    pressed = press(problem, pressing_of(scene), state, scene.steps, scene.petsc_options,
+                    linear=scene.linear)
     solver = HarmonicSolver(linearise(problem))
     try:
         return pressed, solver.sweep(parse_frequencies(frequencies))

@@ -509,17 +509,18 @@ class PressedState:
 
 def press(problem, pressing: RampHold, kind: str = "relaxed", steps: StepOptions | None = None,
           petsc_options: dict | None = None,
-          on_step: Callable | None = None) -> PressedState:
+          on_step: Callable | None = None, linear: str = "direct") -> PressedState:
     """Bring `problem` to its pressed state (see the module's docstring) and leave it there:
     "held" steps `pressing` (ramp and hold) to its end; "relaxed" steps its ramp, then holds the depth
     with the `relaxation_steps`. The problem's `history` is replaced by the one it was pressed
-    with (the state then stays at its depth whatever `set_time` is given)."""
+    with (the state then stays at its depth whatever `set_time` is given). `linear` is the
+    linear solver inside Newton (the scene's `[solver] linear`: "direct" or "iterative")."""
     if kind not in STATES:
         raise InputError("harmonic.state", f"unknown pressed state {kind!r}.",
                          f"use one of {STATES}.")
     started = wallclock.perf_counter()
     problem.history = pressing
-    stepper = TimeStepper(problem, steps, petsc_options)
+    stepper = TimeStepper(problem, steps, petsc_options, linear=linear)
     try:
         end = pressing.end_time if kind == "held" else pressing.ramp_time
         reports = stepper.run(pressing, end, on_step=on_step)

@@ -12,7 +12,11 @@ import ufl
 from dolfinx import fem, mesh
 from mpi4py import MPI
 
+from petsc4py import PETSc
+
 from fingertip_dolfinx.errors import InputError
+from fingertip_dolfinx.harmonic import press
+from fingertip_dolfinx.loading import RampHold
 from fingertip_dolfinx.linear_solvers import LinearSolver, rigid_body_modes
 from fingertip_dolfinx.mesh import build_mesh
 from fingertip_dolfinx.problem import FingertipProblem
@@ -71,6 +75,26 @@ def test_krylov_iterations_within_a_factor_two_at_half_the_size():
         per_newton.append(stepper.linear_iterations / newton)
         stepper.close()
     assert per_newton[1] <= 2 * per_newton[0]
+
+
+def test_harmonic_press_takes_the_scene_linear_solver():
+    """The frequency route's press (harmonic.press) solves with the linear solver it is given:
+    the iterative one runs GMRES (orthogonalisations logged), the direct one none, and both
+    reach the same pressed force (Newton's residual tolerance: rtol 1e-6 of the force)."""
+    PETSc.Log.begin()
+    orthogonalisations = PETSc.Log.Event("KSPGMRESOrthog")
+    forces, krylov = {}, {}
+    for linear in ("direct", "iterative"):
+        scene = load_scene("1pt", [f"{k}={str(v).lower()}" for k, v in COARSE.items()])
+        problem = FingertipProblem(build_mesh(scene.section), scene.indenters, scene.history,
+                                   scene.materials, scene.model)
+        before = orthogonalisations.getPerfInfo().get("count", 0)
+        forces[linear] = press(problem, RampHold(0.1, 0.1, 0.1), "held", STEPS,
+                               scene.petsc_options, linear=linear).force
+        krylov[linear] = orthogonalisations.getPerfInfo().get("count", 0) - before
+    assert krylov["direct"] == 0 and krylov["iterative"] > 0, krylov
+    assert forces["direct"] > 0
+    assert forces["iterative"] == pytest.approx(forces["direct"], rel=1e-6)
 
 
 @pytest.mark.mpi
