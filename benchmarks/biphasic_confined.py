@@ -16,24 +16,10 @@ writes NAME.csv and the chart of error against wall time (PNG) into --out.
     .venv/bin/python benchmarks/biphasic_confined.py [--out DIR] [--coarse]
 """
 
-import argparse
-from pathlib import Path
-
-from biphasic_common import benchmark
+import biphasic_common
 
 from fingertip_dolfinx.studies.problems import ConfinedRelaxation
 
-
-def main():
-    parser = argparse.ArgumentParser(description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--out", type=Path, default=Path("results/biphasic"))
-    parser.add_argument("--coarse", action="store_true", help="a quick run: fewer cells, steps")
-    args = parser.parse_args()
-    n, m_ref, Ns = (12, 16, (25, 100)) if args.coarse else (32, 128, (25, 100, 400, 1600, 6400))
-    benchmark(lambda solid: ConfinedRelaxation(solid=solid), "biphasic_confined", n, 10.0, Ns,
-              m_ref, args.out)
-
-
 if __name__ == "__main__":
-    main()
+    biphasic_common.main(lambda solid: ConfinedRelaxation(solid=solid), "biphasic_confined",
+                         __doc__)
