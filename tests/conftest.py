@@ -37,6 +37,29 @@ def shared_tmp_path(tmp_path_factory, comm):
     return Path(comm.bcast(str(path) if path else None, root=0))
 
 
+@pytest.fixture
+def world_and_alone(tmp_path_factory, comm):
+    """Run a scene on all ranks and on each rank alone (COMM_SELF): a function of the scene
+    that returns the two result directories, after checking that both solved the same
+    problem (dofs) at the same times."""
+    from fingertip_dolfinx.outputs import read_csv
+    from fingertip_dolfinx.runner import run_scene
+
+    def run(scene) -> tuple[Path, Path]:
+        shared = Path(comm.bcast(str(tmp_path_factory.mktemp("world")) if comm.rank == 0
+                                 else None, root=0))
+        alone = tmp_path_factory.mktemp(f"self{comm.rank}")
+        parallel = run_scene(scene, shared, progress=False, comm=comm)
+        serial = run_scene(scene, alone, progress=False, comm=MPI.COMM_SELF)
+        assert parallel["dofs"] == serial["dofs"]
+        times = [read_csv(d / "history.csv")["time_s"] for d in (shared, alone)]
+        assert len(times[0]) == len(times[1])
+        assert max(abs(a - b) for a, b in zip(*times)) <= 1e-12 * max(times[1])
+        return shared, alone
+
+    return run
+
+
 @pytest.fixture(autouse=True)
 def collectives_in_step(comm):
     """After each test, free PETSc objects on every rank at the same moment, then wait for all:
