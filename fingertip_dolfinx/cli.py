@@ -361,38 +361,70 @@ def _run_parameter_sweep(args) -> int:
 
 
 def _run_mesh(args) -> int:
+    """`fingertip mesh`: the 2D section's triangles (or quadrilaterals) and its report."""
+    from .figures import plot_tagged_mesh
+    from .geometry import load_section
     from .geometry3d import section_dimension
+    from .mesh import build_mesh, report_dict
 
     if section_dimension(args.section) == 3:
         return _run_mesh3d(args)
-    from mpi4py import MPI
-    from rich.console import Console
-
-    from .figures import plot_tagged_mesh
-    from .geometry import load_section
-    from .mesh import build_mesh, report_dict, write_xdmf
-
-    comm = MPI.COMM_WORLD
     section = _with_mesh_options(
         load_section(args.section),
         {"min_size": args.min_size, "max_size": args.max_size, "quadrilateral": args.quad or None},
     )
-    console = Console(stderr=True, quiet=comm.rank != 0)
-    with console.status("meshing") as status:
-        fm = build_mesh(section, comm, progress=lambda message: status.update(message))
-        status.update("writing the mesh, picture and report")
-        if comm.rank == 0:
-            args.out.mkdir(parents=True, exist_ok=True)
-        comm.barrier()
-        write_xdmf(fm, args.out / "mesh.xdmf")
-        plot_tagged_mesh(fm, args.out / "mesh.png", title=f"section '{section.name}'")
-        report = report_dict(fm, section)
-    if comm.rank == 0:
-        (args.out / "mesh_report.json").write_text(json.dumps(report, indent=2) + "\n")
-
+    console, fm, report = _mesh_and_write(
+        lambda comm, progress: build_mesh(section, comm, progress=progress), args.out,
+        lambda fm, path: plot_tagged_mesh(fm, path, title=f"section '{section.name}'"),
+        lambda fm: report_dict(fm, section))
     _print_mesh_report(console, fm.report, section.name, report["areas_mm2"], "area (mm²)",
                        6, f"{fm.report.cell_type}s", args.out)
     return 0
+
+
+def _run_mesh3d(args) -> int:
+    """`fingertip mesh` of a 3D fingertip file (`dimension = 3`): tetrahedra, the same outputs."""
+    from .fieldplots import plot_tagged_mesh3d
+    from .geometry3d import load_fingertip3d
+    from .mesh3d import build_mesh3d, report_dict3d
+
+    if args.quad:
+        raise InputError("--quad", "3D meshes are tetrahedral only.", "leave out --quad.")
+    tip = load_fingertip3d(args.section)
+    tip = dataclasses.replace(tip, section=_with_mesh_options(
+        tip.section, {"min_size": args.min_size, "max_size": args.max_size}))
+    title = f"'{tip.name}'" + (" (half: x >= 0)" if tip.half else "")
+    console, fm, report = _mesh_and_write(
+        lambda comm, progress: build_mesh3d(tip, comm, progress=progress), args.out,
+        lambda fm, path: plot_tagged_mesh3d(fm, path, title=title),
+        lambda fm: report_dict3d(fm, tip))
+    _print_mesh_report(console, fm.report, tip.name, report["volumes_mm3"], "volume (mm³)",
+                       4, "tetrahedra", args.out)
+    return 0
+
+
+def _mesh_and_write(build, out, plot, report_of):
+    """Mesh with a progress line, then write mesh.xdmf, mesh.png and mesh_report.json into
+    `out`: (console, mesh, report)."""
+    from mpi4py import MPI
+    from rich.console import Console
+
+    from .mesh import write_xdmf
+
+    comm = MPI.COMM_WORLD
+    console = Console(stderr=True, quiet=comm.rank != 0)
+    with console.status("meshing") as status:
+        fm = build(comm, lambda message: status.update(message))
+        status.update("writing the mesh, picture and report")
+        if comm.rank == 0:
+            out.mkdir(parents=True, exist_ok=True)
+        comm.barrier()
+        write_xdmf(fm, out / "mesh.xdmf")
+        plot(fm, out / "mesh.png")
+        report = report_of(fm)
+    if comm.rank == 0:
+        (out / "mesh_report.json").write_text(json.dumps(report, indent=2) + "\n")
+    return console, fm, report
 
 
 def _print_mesh_report(console, r, name: str, measures: dict, measure: str, digits: int,
@@ -412,41 +444,6 @@ def _print_mesh_report(console, r, name: str, measures: dict, measure: str, digi
         f"min {r.min_quality:.3f}, mean {r.mean_quality:.3f}; edges {r.min_edge:.4f}–"
         f"{r.max_edge:.4f} mm\nwrote {out}/mesh.xdmf (+ .h5), mesh.png, mesh_report.json"
     )
-
-
-def _run_mesh3d(args) -> int:
-    """`fingertip mesh` of a 3D fingertip file (`dimension = 3`): tetrahedra, the same outputs."""
-    from mpi4py import MPI
-    from rich.console import Console
-
-    from .fieldplots import plot_tagged_mesh3d
-    from .geometry3d import load_fingertip3d
-    from .mesh import write_xdmf
-    from .mesh3d import build_mesh3d, report_dict3d
-
-    if args.quad:
-        raise InputError("--quad", "3D meshes are tetrahedral only.", "leave out --quad.")
-    comm = MPI.COMM_WORLD
-    tip = load_fingertip3d(args.section)
-    tip = dataclasses.replace(tip, section=_with_mesh_options(
-        tip.section, {"min_size": args.min_size, "max_size": args.max_size}))
-    console = Console(stderr=True, quiet=comm.rank != 0)
-    with console.status("meshing") as status:
-        fm = build_mesh3d(tip, comm, progress=lambda message: status.update(message))
-        status.update("writing the mesh, picture and report")
-        if comm.rank == 0:
-            args.out.mkdir(parents=True, exist_ok=True)
-        comm.barrier()
-        write_xdmf(fm, args.out / "mesh.xdmf")
-        plot_tagged_mesh3d(fm, args.out / "mesh.png", title=f"'{tip.name}'"
-                           + (" (half: x >= 0)" if tip.half else ""))
-        report = report_dict3d(fm, tip)
-    if comm.rank == 0:
-        (args.out / "mesh_report.json").write_text(json.dumps(report, indent=2) + "\n")
-
-    _print_mesh_report(console, fm.report, tip.name, report["volumes_mm3"], "volume (mm³)",
-                       4, "tetrahedra", args.out)
-    return 0
 
 
 def _with_mesh_options(section, given: dict):
