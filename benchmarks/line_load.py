@@ -24,11 +24,19 @@ Why the ratio stays near 6 on the line load (measured, 2026-11-23; counts from P
 - Quadrature degree 2 (3 points instead of 6; 2k - 2 for P2 keeps the optimal rate) makes a
   Jacobian ~35 % cheaper but the force moves by 2e-4 (1.1794e-3 against 1.1796e-3 N/mm:
   not the same 4 digits) and Newton takes 206 factorisations: kept at 4.
+On a shared machine PETSc's event times (wall) include the other processes' turns: the
+script also prints this process's CPU time for the stepping and, measured by itself at the
+final state, for one Jacobian + LU + solve, the bound in CPU time. `--reference
+accuracy.json` scores the key outputs against an accuracy study's reference.
+
     .venv/bin/python benchmarks/line_load.py [--scene line-load] [--set key=value ...]
+        [--reference docs/results/adaptivity/check-line-load-full/accuracy.json]
     .venv/bin/mpiexec -n 2 .venv/bin/python benchmarks/line_load.py
 """
 
 import argparse
+import json
+import os
 import tempfile
 import time
 from pathlib import Path
@@ -40,6 +48,7 @@ import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
 from fingertip_dolfinx.outputs import read_csv
 from fingertip_dolfinx.runner import Run
 from fingertip_dolfinx.scene import load_scene
+from fingertip_dolfinx.studies.keys import KEYS, key_outputs, relative_errors
 
 EVENTS = {"residual": "SNESFunctionEval", "jacobian": "SNESJacobianEval",
           "factorisation": "MatLUFactorNum", "solve": "KSPSolve", "triangular": "MatSolve"}
@@ -50,24 +59,31 @@ def main():
     parser.add_argument("--scene", default="line-load")
     parser.add_argument("--set", dest="overrides", action="append", default=[])
     parser.add_argument("--out", type=Path, default=None, help="keep the results here")
+    parser.add_argument("--reference", type=Path, default=None, metavar="JSON",
+                        help="an accuracy study's accuracy.json: print each key output's "
+                             "relative error against its reference, e.g. docs/results/"
+                             "adaptivity/check-line-load-full/accuracy.json")
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
     scene = load_scene(args.scene, args.overrides)
     out = args.out or Path(comm.bcast(tempfile.mkdtemp() if comm.rank == 0 else None))
 
     PETSc.Log.begin()
-    started = time.perf_counter()
+    started, cpu = time.perf_counter(), time.process_time()
     job = Run(scene, out, comm, resume=False, progress=False)
     writing = _timed(job, "on_step")  # the results written after each step, pictures too
-    stepping = time.perf_counter()
+    stepping, stepping_cpu = time.perf_counter(), time.process_time()
     job.run()
-    stepping = time.perf_counter() - stepping
+    stepping, stepping_cpu = (time.perf_counter() - stepping,
+                              time.process_time() - stepping_cpu)
     krylov = job.stepper.linear_iterations
     reuse = job.stepper.reuse  # None, or the counts of Jacobians assembled and kept
-    summary = job.finish(True, None, time.perf_counter() - started)
-    wall = time.perf_counter() - started
-    solving = stepping - writing[0]
     perf = {k: PETSc.Log.Event(name).getPerfInfo() for k, name in EVENTS.items()}
+    kept = None if reuse is None else (reuse.assembled, reuse.reused)
+    per_step_cpu = _one_iteration_cpu(job.stepper)  # after the counts: it adds to them
+    summary = job.finish(True, None, time.perf_counter() - started)
+    wall, cpu = time.perf_counter() - started, time.process_time() - cpu
+    solving = stepping - writing[0]
     if comm.rank != 0:
         return
     h = read_csv(out / "history.csv")
@@ -75,7 +91,7 @@ def main():
     t = {k: p.get("time", 0.0) for k, p in perf.items()}  # rank 0's share
     n = {k: int(p.get("count", 0)) for k, p in perf.items()}
     if reuse is not None:  # SNESJacobianEval counts the calls, kept Jacobians included
-        n["jacobian"] = reuse.assembled
+        n["jacobian"] = kept[0]
     per_jac = t["jacobian"] / max(n["jacobian"], 1)
     per_factor = t["factorisation"] / max(n["factorisation"], 1)
     per_solve = t["triangular"] / max(n["triangular"], 1)  # one pair of triangular solves
@@ -94,17 +110,63 @@ def main():
     print(f"counts: residuals {n['residual']}, Jacobians {n['jacobian']}, LU factorisations "
           f"{n['factorisation']}, linear solves {n['solve']}, Krylov iterations "
           f"{'- (direct)' if direct else krylov}"
-          + ("" if reuse is None else f"; Jacobians kept {reuse.reused} (reuse threshold "
+          + ("" if reuse is None else f"; Jacobians kept {kept[1]} (reuse threshold "
                                       f"{reuse.threshold:g})"))
     print(f"wall time {wall:.1f} s: stepping {stepping:.1f} s = solving {solving:.1f} s + "
           f"writing results {writing[0]:.1f} s (profiles, fields, pictures); the rest is "
           "meshing, form compilation and the summary's figures")
+    # On a shared machine wall time counts the other processes' turns; CPU time of this
+    # process (rank 0) is the one-core cost.
+    print(f"CPU time (rank 0) {cpu:.1f} s, stepping {stepping_cpu:.1f} s; load average "
+          f"{os.getloadavg()[0]:.2f} (1 min)")
+    bound_cpu = steps * sum(per_step_cpu)
+    print(f"one Jacobian + LU + solve at the final state, CPU (best of 5): "
+          f"{' + '.join(f'{v:.4f}' for v in per_step_cpu)} s; the bound in CPU time "
+          f"{bound_cpu:.2f} s, stepping CPU {stepping_cpu / bound_cpu:.2f} times it")
     print(f"lower bound (one Jacobian + LU + solve per step) {bound:.2f} s; ratio: solving "
           f"{solving / bound:.2f}, stepping {stepping / bound:.2f}")
     forces = summary["force_at_output_times_N_per_mm"]
     print("force at output times: " + ", ".join(f"{k} s {v:.6g} N/mm" for k, v in forces.items()))
     print(f"peak force {summary['peak_force_N_per_mm']:.6g} N/mm; max penetration "
           f"{1e3 * summary['max_penetration_mm']:.3g} µm; results in {out}")
+    if args.reference is not None:
+        _score(out, args.reference)
+
+
+def _score(out: Path, reference: Path):
+    """Print the run's key outputs and their relative errors against an accuracy study's
+    reference values (its accuracy.json, "reference")."""
+    ref = json.loads(reference.read_text())["reference"]
+    values = key_outputs(out)
+    errors = relative_errors(values, ref)
+    for k in KEYS:
+        print(f"  {k}: {values[k]:.6g} (reference {ref[k]:.6g}): {errors[k]:.3%}")
+    worst = max(KEYS, key=errors.get)
+    print(f"worst key-output error {errors[worst]:.3%} ({worst}) against {reference}")
+
+
+def _one_iteration_cpu(stepper, repeats: int = 5) -> tuple[float, float, float]:
+    """CPU seconds of this process for one Jacobian assembly, one LU factorisation and one
+    solve at the final state, the best of `repeats`: the per-step cost of the bound, free of
+    the other processes' share of a busy machine (PETSc's event times are wall times)."""
+    snes = stepper.snes
+    x, (F, _), (J, P, _) = snes.getSolution(), snes.getFunction(), snes.getJacobian()
+    ksp, y = snes.getKSP(), x.duplicate()
+    snes.computeFunction(x, F)
+    best = [float("inf")] * 3
+    for _ in range(repeats):
+        if stepper.reuse is not None:
+            stepper.reuse.start()  # assemble, do not keep
+        t0 = time.process_time()
+        snes.computeJacobian(x, J, P)
+        t1 = time.process_time()
+        ksp.setOperators(J, P)
+        ksp.getPC().setUp()  # the values changed: a numerical factorisation
+        t2 = time.process_time()
+        ksp.solve(F, y)
+        t3 = time.process_time()
+        best = [min(b, v) for b, v in zip(best, (t1 - t0, t2 - t1, t3 - t2))]
+    return tuple(best)
 
 
 def _timed(obj, name: str) -> list[float]:

@@ -298,7 +298,7 @@ def _add_physical_groups(regions: dict[str, list[int]], curves: dict[str, list[i
 def _set_sizes(section: Section, regions: dict[str, list[int]], curves: dict[str, list[int]]):
     """min_size within refine_depth of the pulp's refinement zone, growing away from it to
     max_size in the soft tissue and nail and to bone_size deep inside the bone; tip_size within
-    tip_zone of each tip point."""
+    tip_zone of each tip point; spot_size within spot_zone of each spot."""
     opts, field = section.mesh, gmsh.model.mesh.field
     zone_length = section.outer.arc_length(*section.refine_params)
     distance = field.add("Distance")
@@ -336,6 +336,7 @@ def _set_sizes(section: Section, regions: dict[str, list[int]], curves: dict[str
         growth_distance = (opts.bone_size - opts.tip_size) / SIZE_GROWTH
         field.setNumber(tip, "DistMax", opts.tip_zone + growth_distance)
         fields.append(tip)
+    fields += _spot_fields(section)
     size = field.add("Min")
     field.setNumbers(size, "FieldsList", fields)
     field.setAsBackgroundMesh(size)
@@ -350,6 +351,21 @@ def _set_sizes(section: Section, regions: dict[str, list[int]], curves: dict[str
     # segment, such as a nail end shorter than the element size: ask for two at least.
     for kind in ("Curve", "Line"):
         gmsh.option.setNumber(f"Mesh.Minimum{kind}Nodes", 3)
+
+
+def _spot_fields(section: Section) -> list[int]:
+    """A gmsh Ball field per `mesh.spots` entry: spot_size within spot_zone of the point at that
+    depth below the pulp, growing at SIZE_GROWTH (as the tip discs) to bone_size."""
+    opts, fields = section.mesh, []
+    for x0, depth in opts.spots:
+        x, y = section.outer.below_palmar(x0, depth)[0]
+        spot = gmsh.model.mesh.field.add("Ball")
+        for key, value in (("XCenter", x), ("YCenter", y), ("Radius", opts.spot_zone),
+                           ("VIn", opts.spot_size), ("VOut", opts.bone_size),
+                           ("Thickness", (opts.bone_size - opts.spot_size) / SIZE_GROWTH)):
+            gmsh.model.mesh.field.setNumber(spot, key, value)
+        fields.append(spot)
+    return fields
 
 
 def _report(section: Section, seconds: float) -> MeshReport:

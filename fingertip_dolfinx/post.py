@@ -181,11 +181,7 @@ def depth_curve(outer, depth: float, half_width: float, n: int,
     points are n evenly spaced in |x| <= half_width, or those at the abscissae `x` if given.
     """
     x = np.linspace(-half_width, half_width, n) if x is None else np.asarray(x, dtype=float)
-    a, b, cy = outer.a, outer.b, outer.cy
-    y = cy - b * np.sqrt(np.clip(1 - (x / a) ** 2, 0.0, None))
-    normal = np.column_stack([x / a**2, (y - cy) / b**2])
-    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
-    return x, np.column_stack([x, y]) - depth * normal
+    return x, outer.below_palmar(x, depth)
 
 
 def sample_curves(curves, problem, derived: DerivedFields):

@@ -110,3 +110,10 @@ def test_an_indenter_that_never_reaches_the_skin_is_named(tmp_path, capsys):
     assert "indenters[1] (bar at x = 6.5 mm)" in err and "never reaches the skin" in err, err
     assert main(["run", str(scene), "--set", "indenters.1.centre_x=0.5",
                  "--set", "protocol.depth=0.1", "--out", str(tmp_path / "ok"), "--quiet"]) == 0
+
+
+def test_sweep_spots_without_spacings_is_refused(tmp_path, capsys):
+    # the discs follow the bars of a spacing sweep; a parameter sweep has no bars to follow
+    assert main(["sweep", "1pt", "--param", "materials.skin.mu", "--factors", "1", "--spots",
+                 "--out", str(tmp_path)]) == 2
+    assert "sweep --spots" in capsys.readouterr().err

@@ -43,6 +43,25 @@ def test_distance_to_ellipse_is_exact_on_parallel_curves():
         assert np.allclose(e.distance(e.point(u) + t * e.normal(u)), abs(t), atol=1e-12)
 
 
+def test_points_below_the_pulp_lie_at_their_depth_inside_the_ellipse():
+    e, x = Ellipse(8.0, 7.0, cy=1.0), np.linspace(-6.0, 6.0, 13)
+    for depth in (0.25, 0.75, 1.5):
+        p = e.below_palmar(x, depth)
+        # along the inward normal from the palmar point at x: at exactly that distance
+        assert np.allclose(e.distance(p), depth, atol=1e-12) and e.contains(p).all()
+        assert np.all(p[:, 1] < e.cy)
+    assert np.allclose(e.below_palmar(0.0, 0.75), [[0.0, 1.0 - 7.0 + 0.75]], atol=1e-15)
+
+
+def test_spots_are_x_depth_pairs_finer_than_the_zone():
+    assert MeshOptions(spots=[[0.0, 0.75], [1, 2]]).spots == ((0.0, 0.75), (1.0, 2.0))
+    for bad in ([0.0, 0.75], [[0.0]], [[0.0, -0.5]], [[0.0, math.nan]], "0, 0.75"):
+        with pytest.raises(InputError, match=r"mesh\.spots: must be a list of \[x, depth\]"):
+            MeshOptions(spots=bad)
+    with pytest.raises(InputError, match=r"mesh\.spot_size: 0\.2 mm is coarser than mesh\.min"):
+        MeshOptions(min_size=0.1, spots=[[0.0, 0.75]], spot_size=0.2)
+
+
 def test_fine_mesh_sizes_are_allowed():
     assert Section(mesh=MeshOptions(min_size=0.01)).mesh.min_size == 0.01
 

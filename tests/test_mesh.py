@@ -122,6 +122,28 @@ def test_refinement_zone_gets_the_fine_size():
     assert fm.report.min_quality > 0.3
 
 
+def test_a_spot_gets_its_fine_disc_and_nothing_else_changes():
+    # The disc of spot_size under the load: cells inside it are spot-sized, while without
+    # the spot the same place has the zone's 4x coarser cells; the disc (radius 0.3 mm) adds
+    # about its area over spot-sized cells, not a refined mesh.
+    base = dataclasses.replace(Section().mesh, min_size=0.4, max_size=0.8, bone_size=1.5,
+                               refine_depth=1.5)
+    spot = dataclasses.replace(base, spots=((0.5, 0.75),), spot_size=0.1, spot_zone=0.3)
+    centre = Section().outer.below_palmar(0.5, 0.75)[0]
+    sizes = {}
+    for name, options in (("plain", base), ("spot", spot)):
+        fm = build_mesh(dataclasses.replace(Section(), mesh=options), MPI.COMM_SELF)
+        cells = np.arange(fm.mesh.topology.index_map(2).size_local)
+        x = fm.mesh.geometry.x[entities_to_geometry(fm.mesh, 2, cells)][..., :2]
+        edges = np.linalg.norm(x - np.roll(x, 1, axis=1), axis=2).max(axis=1)
+        inside = np.linalg.norm(x.mean(axis=1) - centre, axis=1) < 0.25
+        sizes[name] = (edges[inside].max(), edges[inside].min(), len(cells))
+        assert fm.report.min_quality > 0.3
+    assert sizes["spot"][0] < 1.5 * 0.1 and sizes["plain"][1] > 2 * 0.1
+    disc_cells = math.pi * (0.3 + 0.4) ** 2 / (math.sqrt(3) / 4 * 0.1**2)  # with its rim
+    assert 0 < sizes["spot"][2] - sizes["plain"][2] < disc_cells
+
+
 def owned(fm, dim: int, entities: np.ndarray) -> np.ndarray:
     return entities[entities < fm.mesh.topology.index_map(dim).size_local]
 

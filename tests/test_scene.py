@@ -1,6 +1,7 @@
 """Scenes end to end on a coarse mesh: outputs, equilibrium, the paper's qualitative results for
 a round-tipped bar, resuming an interrupted run, and the same numbers on 1 and 2 ranks."""
 
+import dataclasses
 import json
 import re
 
@@ -207,3 +208,37 @@ def test_section_z_is_refused_in_2d_and_off_the_cylinder():
         load_scene("1pt", ["output.section_z=5.0"])
     with pytest.raises(InputError, match="cylindrical part"):
         load_scene("probe-3d", ["output.section_z=18.0"])
+
+
+def test_the_one_percent_line_load_is_the_line_load_on_a_cheaper_mesh():
+    # A preset that may change how the answer is computed (mesh, Newton tolerance, outputs),
+    # never what is computed: the same section, wedge, tissues, protocol, model and steps.
+    fast, full = load_scene("line-load-1pct"), load_scene("line-load")
+    for part in ("indenters", "history", "materials", "model", "linear"):
+        assert getattr(fast, part) == getattr(full, part), part
+    # the steps too, but for when Newton keeps its Jacobian (its tolerances are unchanged)
+    assert dataclasses.replace(fast.steps, jacobian_reuse=full.steps.jacobian_reuse) == full.steps
+    assert dataclasses.replace(fast.section, mesh=full.section.mesh) == full.section
+    assert dataclasses.replace(fast.outputs, pictures=True, field_every=1) == full.outputs
+    # its fine disc sits where the key outputs' SED and e_max peaks are read: the first output
+    # time's depth curve at 0.75 mm, under the wedge's tip
+    (x, depth), = fast.section.mesh.spots
+    assert depth in full.depths and x == full.section.mesh.tips[0] == full.indenters[0].centre_x
+    assert fast.section.mesh.spot_size < full.section.mesh.min_size < fast.section.mesh.min_size
+    # a Newton residual tolerance still far below the 1 % asked: 1e-3 of the peak force
+    # (1.18e-3 N/mm)
+    assert float(fast.petsc_options["snes_atol"]) <= 1e-3 * 1.18e-3
+
+
+def test_sweep_spots_sit_under_the_bars_and_midway_at_the_output_depth():
+    # normalized_variation reads the fields at x = ±d/2 (the bar centres) and 0, at the first
+    # output depth: the discs must follow the bars as the spacing changes
+    from fingertip_dolfinx.sweep import sweep_scenes
+
+    spacings = [1.5, 3.0]
+    for d, scene in zip(spacings, sweep_scenes("2pt", spacings, ["section.mesh.min_size=0.2"],
+                                               spots=True)):
+        assert sorted(x for x, _ in scene.section.mesh.spots) == [-d / 2, 0.0, d / 2]
+        assert {depth for _, depth in scene.section.mesh.spots} == {scene.depths[0]}
+        assert sorted(i.centre_x for i in scene.indenters) == [-d / 2, d / 2]
+    assert sweep_scenes("2pt", spacings[:1])[0].section.mesh.spots == ()
