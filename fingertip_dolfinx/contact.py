@@ -28,12 +28,14 @@ is the derivative of ½ ∫ γ [−g]_+² ds, and Nitsche's with θ = 1 of
 ∫ ([t_n − γ g]_+² − t_n²)/(2γ) ds (Chouly, Hild & Renard, ESAIM: M2AN 49, 2015, 481–502: only
 the symmetric variant conserves an augmented energy). Nitsche's with θ = 0 is not: its tangent
 has the part −H(t_n − γg) δt_n[δu] (n·v) without its transpose, a follower-like force that can
-feed the contact zone's fast modes (flutter). Measured on the coarse fingertip at 250 Hz
-(benchmarks/two_routes.py, 1 µm drive, ρ∞ = 0.8): with θ = 0 a ~6.6 kHz oscillation at the
-edges of the contact zone grows ×50 every 2.5 ms at Δt = 50 µs until Newton fails 6 ms after
-the onset; the penalty (γ0 = 100) runs 30 ms with the step-to-step force oscillation flat at
-7e-8 N/mm. Generalised-α's dissipation hides the growth at Δt ≥ 100 µs there (ωΔt ≥ 4 for that
-mode); it is the space discretisation, not the integrator, so a smaller step cannot cure it.
+feed the stiff modes of the contact's edges (flutter). Measured on the coarse fingertip at
+250 Hz (benchmarks/two_routes.py, 1 µm drive, ρ∞ = 0.8): with θ = 0 an oscillation at 150–160°
+a step (6.7 kHz at Δt = 67 µs, 8.4 kHz at 50 µs: unresolved modes, ωΔt ≫ 1, which the
+integrator damps by about ρ∞ a step) grew ×1.4 every 2.5 ms at Δt = 67 µs, and ×50 in 2.5 ms
+at 50 µs until Newton failed 6.4 ms after the onset; ρ∞ = 1 failed within 2.5 ms, ρ∞ = 0.5
+held. The penalty ran 30 ms (γ0 = 10 at both steps, 100 at 50 µs) with the step-to-step force
+oscillation decaying to 0.5–1.5e-7 N/mm, and γ0 = 100 the 290 ms of the two-routes runs. It is the space discretisation, not the integrator: only
+enough numerical dissipation (ρ∞, or Δt ≥ 100 µs there) hides it.
 `NitscheContact.conservative` says which laws are safe; the time stepper warns about the others.
 """
 
