@@ -34,8 +34,9 @@ a step (6.7 kHz at Δt = 67 µs, 8.4 kHz at 50 µs: unresolved modes, ωΔt ≫ 
 integrator damps by about ρ∞ a step) grew ×1.4 every 2.5 ms at Δt = 67 µs, and ×50 in 2.5 ms
 at 50 µs until Newton failed 6.4 ms after the onset; ρ∞ = 1 failed within 2.5 ms, ρ∞ = 0.5
 held. The penalty ran 30 ms (γ0 = 10 at both steps, 100 at 50 µs) with the step-to-step force
-oscillation decaying to 0.5–1.5e-7 N/mm, and γ0 = 100 the 290 ms of the two-routes runs. It is the space discretisation, not the integrator: only
-enough numerical dissipation (ρ∞, or Δt ≥ 100 µs there) hides it.
+oscillation decaying to 0.5–1.5e-7 N/mm, and γ0 = 100 the 290 ms of the two-routes runs. It is
+the space discretisation, not the integrator: only enough numerical dissipation (ρ∞, or
+Δt ≥ 100 µs there) hides it.
 `NitscheContact.conservative` says which laws are safe; the time stepper warns about the others.
 """
 

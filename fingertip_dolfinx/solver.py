@@ -281,10 +281,11 @@ class TimeStepper:
             warnings.warn(
                 f"a dynamic run with {contact.method} contact (theta = {contact.theta}), whose "
                 "force derives from no potential: it can feed the contact zone's fast modes "
-                "(on the coarse fingertip at 250 Hz an oscillation near the steps' Nyquist frequency "
-                "grew until Newton failed at steps of 50 µs; generalised-α's dissipation hides "
-                "it at larger steps). Fix: model.contact = \"penalty\" with model.contact_gamma0 = 100 "
-                "(conservative; penetration ~ pressure/γ), see contact.py.",
+                "(on the coarse fingertip at 250 Hz an oscillation near the steps' Nyquist "
+                "frequency grew until Newton failed at steps of 50 µs; generalised-α's "
+                "dissipation hides it at larger steps). Fix: model.contact = \"penalty\" with "
+                "model.contact_gamma0 = 100 (conservative; penetration ~ pressure/γ), see "
+                "contact.py.",
                 NonConservativeContactWarning, stacklevel=3)
 
     def close(self) -> None:
