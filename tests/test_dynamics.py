@@ -267,8 +267,8 @@ def test_vibrotactile_contact_keeps_fine_steps_stable(tmp_path):
     (conservative, penalty) contact: the step-to-step oscillation of the force that the onset
     leaves does not grow. Generalised-α (ρ∞ = 0.8) dissipates, and a contact force with a
     potential adds no energy, so from 0.5–1.5 ms to 4–5 ms after the onset it can only decay
-    (measured: 3.7e-7 → 6e-8 N/mm). With Nitsche's θ = 0 it grew ×280 over the same span
-    (1.2e-5 → 3.4e-3 N/mm) and Newton failed at 6.4 ms."""
+    (measured: 3.7e-7 → 6e-8 N/mm). With Nitsche's θ = 0 it grew ×155 over the same span
+    (3.6e-5 → 5.6e-3 N/mm) and Newton failed at 6.4 ms."""
     from fingertip_dolfinx.result import Result
     from fingertip_dolfinx.runner import run_scene
 
