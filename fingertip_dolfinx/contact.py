@@ -21,6 +21,23 @@ says. The method is consistent, so the solution does not depend on γ0 as a pena
 
 Several indenters act as one obstacle, their union: each surface point takes the gap and normal
 of the nearest indenter. Its force counts towards that indenter.
+
+Dynamics (a model with inertia) needs a conservative contact force, one that is the gradient of
+a potential, so that the semi-discrete system keeps an energy. The penalty force −∫ γ[−g]_+ n·v
+is the derivative of ½ ∫ γ [−g]_+² ds, and Nitsche's with θ = 1 of
+∫ ([t_n − γ g]_+² − t_n²)/(2γ) ds (Chouly, Hild & Renard, ESAIM: M2AN 49, 2015, 481–502: only
+the symmetric variant conserves an augmented energy). Nitsche's with θ = 0 is not: its tangent
+has the part −H(t_n − γg) δt_n[δu] (n·v) without its transpose, a follower-like force that can
+feed the stiff modes of the contact's edges (flutter). Measured on the coarse fingertip at
+250 Hz (benchmarks/two_routes.py, 1 µm drive, ρ∞ = 0.8): with θ = 0 an oscillation at 150–160°
+a step (6.7 kHz at Δt = 67 µs, 8.4 kHz at 50 µs: unresolved modes, ωΔt ≫ 1, which the
+integrator damps by about ρ∞ a step) grew ×1.4 every 2.5 ms at Δt = 67 µs, and ×50 in 2.5 ms
+at 50 µs until Newton failed 6.4 ms after the onset; ρ∞ = 1 failed within 2.5 ms, ρ∞ = 0.5
+held. The penalty ran 30 ms (γ0 = 10 at both steps, 100 at 50 µs) with the step-to-step force
+oscillation decaying to 0.5–1.5e-7 N/mm, and γ0 = 100 the 290 ms of the two-routes runs. It is
+the space discretisation, not the integrator: only enough numerical dissipation (ρ∞, or
+Δt ≥ 100 µs there) hides it.
+`NitscheContact.conservative` says which laws are safe; the time stepper warns about the others.
 """
 
 from __future__ import annotations
@@ -55,6 +72,10 @@ TIP_PENETRATION_TOLERANCE = 0.01
 #: sharp tip, where Nitsche's traction estimate t_n is poor and its derivative, a negative
 #: stiffness, made Newton's matrix nearly singular (line load, hold phase).
 CONTACT_METHODS = ("nitsche", "penalty")
+
+
+class NonConservativeContactWarning(UserWarning):
+    """A dynamic run with a contact force that derives from no potential (Nitsche, θ ≠ 1)."""
 
 
 class TipResolutionWarning(UserWarning):
@@ -146,6 +167,12 @@ class NitscheContact:
         )
         #: The Nitsche contact pressure [t_n − γ g]_+ on the surface (MPa, > 0 in compression).
         self.pressure = sum(c * p for c, p in zip(self._nearest, self._pressures))
+
+    @property
+    def conservative(self) -> bool:
+        """Whether the contact force is the gradient of a potential (penalty, or Nitsche with
+        θ = 1): then it cannot pump energy into a dynamic run (module docstring)."""
+        return self.method == "penalty" or self.theta == 1
 
     def _term(self, i: int, v) -> ufl.Form:
         """Indenter i's share of the residual, tested with v (an Argument or a Function)."""

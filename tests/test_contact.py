@@ -139,3 +139,33 @@ def test_bad_nitsche_parameters_are_refused():
         NitscheContact(u, P, ufl.ds, [obstacle], modulus=1.0, gamma0=0.0)
     with pytest.raises(InputError, match="no indenter"):
         NitscheContact(u, P, ufl.ds, [], modulus=1.0)
+
+
+@pytest.mark.parametrize("method, theta, conservative", [
+    ("penalty", 0, True), ("nitsche", 1, True), ("nitsche", 0, False), ("nitsche", -1, False)])
+def test_only_conservative_contact_laws_have_a_symmetric_tangent(method, theta, conservative):
+    # A contact force that is the gradient of a potential (penalty: ½∫γ[−g]_+², Nitsche θ = 1:
+    # ∫([t_n − γg]_+² − t_n²)/2γ) has a symmetric tangent, the potential's Hessian; Nitsche's
+    # θ = 0 lacks the transpose of −H δt_n[δu] (n·v) and can pump energy into a dynamic run
+    # (contact.py). A bar's round tip pressed 0.02 mm into a block under a smooth, non-trivial
+    # deformation (the curvature of the tip and the stress both enter the tangent): symmetric
+    # to round-off (1e-10 of the norm) exactly where `conservative` says so.
+    from dolfinx.fem.petsc import assemble_matrix
+    from dolfinx.mesh import create_rectangle
+
+    domain = create_rectangle(MPI.COMM_WORLD, [[-1.0, 0.0], [1.0, 1.0]], [16, 8])
+    V = fem.functionspace(domain, ("Lagrange", 2, (2,)))
+    u, v, du = fem.Function(V), ufl.TestFunction(V), ufl.TrialFunction(V)
+    u.interpolate(lambda x: np.vstack([0.01 * x[0] * (1 - x[1]), 0.005 * x[0] ** 2 - 0.003 * x[1]]))
+    bar = Obstacle.at(domain, Bar(width=1.0, centre_x=0.1), y_tip=0.02)
+    contact = NitscheContact(u, HERTZ.stress(u), ufl.ds, [bar], modulus=HERTZ.modulus,
+                             method=method, theta=theta)
+    K = assemble_matrix(fem.form(ufl.derivative(contact.residual(v), u, du)))
+    K.assemble()
+    asymmetry = K.copy()
+    asymmetry.transpose()  # in place: Kᵀ
+    asymmetry.aypx(-1.0, K)  # K − Kᵀ
+    ratio = asymmetry.norm() / K.norm()
+    assert contact.conservative == conservative
+    assert K.norm() > 0  # the tip is in contact
+    assert (ratio < 1e-10) == conservative, ratio
