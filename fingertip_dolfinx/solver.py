@@ -37,7 +37,9 @@ when it fails (divergence, NaN, inverted elements); after `max_cuts` cuts in a r
 stops with a message that says when, where and why. Compaction of a porous tissue (J within
 the margin of its solid fraction φ0, at a quadrature point or a node) is a physical limit, not
 a numerical one: the run stops at once with a `CompactionError` (also when Newton's residual
-turns non-finite twice in a step at an iterate whose pores closed). Times in the messages carry
+turns non-finite twice in a step at an iterate whose pores closed, and the accepted states,
+extrapolated, reach the limit within the step; otherwise that iterate overshot and the step
+is cut). Times in the messages carry
 the digits that tell t and t + Δt apart. Forms are compiled once: time, step size, loads and
 multistep weights are `fem.Constant`s the problem updates in place.
 """
@@ -372,8 +374,10 @@ class TimeStepper:
             rejected, extra_iterations = 0, 0
             restart = error_control and len(since) == 1
             saved = _save(problem) if restart else None
+            t_first = None  # the end of this step's first attempt
             while True:
                 t_new = step_times(marks, t, dt, end_time)
+                t_first = t_new if t_first is None else t_first
                 problem.dt.value = t_new - t
                 problem.set_time(t_new)
                 plan = self._prepare(since, own, t_new)
@@ -424,10 +428,14 @@ class TimeStepper:
                             why += (f"; the residual is largest near x = ({where[0]:.3f}, "
                                     f"{where[1]:.3f}) mm")
                     # Did the residual turn non-finite at an iterate whose pores closed (J ≤ φ0
-                    # at a quadrature point)? Once may be an overshoot; again after a cut, it
-                    # is the limit.
+                    # at a quadrature point)? Once may be an overshoot; again after a cut, and
+                    # with the accepted states heading there within the step, it is the limit.
+                    # Iterates of large ramp steps of the undrained line load closed pores at
+                    # J = 0.39 while every accepted state had J = 1: Newton's overshoot, cut.
                     closed_iterates += self._closed is not None
-                    compacted = self._closed if closed_iterates > 1 else None
+                    if closed_iterates > 1 and _heading_for(problem, states, t_first,
+                                                            self._closed.limit):
+                        compacted = self._closed
                 problem.restore()
                 if compacted is not None:
                     problem.set_time(t)
@@ -446,7 +454,8 @@ class TimeStepper:
                     load_a, load_b = _distinct(history(t), history(t_new))
                     raise ConvergenceError(
                         f"the step from t = {a} s to t = {b} s (load {load_a} -> {load_b}) "
-                        f"failed {cuts} times, the last with Δt = {t_new - t:.3g} s: {why}. "
+                        f"failed {cuts} times, the last with Δt = {t_new - t:.3g} s: {why}"
+                        f"{_overshoot_note(closed_iterates)}. "
                         f"Results up to t = {a} s are saved. Fix: lower the load or its rate, "
                         "refine the mesh where it fails, or allow smaller steps (dt_min, "
                         "max_cuts)."
@@ -752,6 +761,40 @@ def _approach(problem, compacted, t: float, t_new: float, nodes: bool) -> str:
         crossing = t + (t_new - t) * (J0 - limit) / (J0 - J1)
         text += f" and crossed {limit:g} near t = {_distinct(crossing, t_new)[0]} s"
     return text
+
+
+def _heading_for(problem, states, t_reach: float, limit: float) -> bool:
+    """Whether the accepted states head for J = `limit` by `t_reach`: the lowest J of the
+    last two accepted states (`states`: (time, unknowns' arrays)), extrapolated linearly."""
+    if len(states) < 2:
+        return False  # the first step: nothing accepted is heading anywhere yet
+    keep = [f.x.array.copy() for f in problem.unknowns]
+    lows = []
+    for _, arrays in states:
+        _assign(problem.unknowns, arrays)
+        found = _compacted(problem, math.inf)  # the lowest J, wherever it is
+        lows.append(math.inf if found is None else found.J)
+    _assign(problem.unknowns, keep)
+    (t0, _), (t1, _) = states
+    return crosses(t0, lows[0], t1, lows[1], t_reach, limit)
+
+
+def crosses(t0: float, J0: float, t1: float, J1: float, t_reach: float, limit: float) -> bool:
+    """Whether J, falling from J0 at t0 to J1 at t1 and extrapolated linearly, reaches `limit`
+    by `t_reach`. A J that does not fall (an undrained tissue stays at J = 1) never does."""
+    if not (t1 > t0 and J1 < J0):
+        return False
+    return J1 + (J1 - J0) / (t1 - t0) * (t_reach - t1) <= limit
+
+
+def _overshoot_note(closed_iterates: int) -> str:
+    """What the failure message adds when Newton's iterates closed pores that the accepted
+    states were not heading for."""
+    if not closed_iterates:
+        return ""
+    return (f"; in {closed_iterates} attempt(s) a Newton iterate closed the pores (J <= phi0) "
+            "although the accepted states were not heading there: an overshoot of Newton's, "
+            "not compaction (smaller or more gradual steps help)")
 
 
 def _finite(vector: PETSc.Vec) -> bool:

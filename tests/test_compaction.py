@@ -23,7 +23,7 @@ from fingertip_dolfinx import materials as mat
 from fingertip_dolfinx.admissibility import Admissibility, Compaction, quadrature_points
 from fingertip_dolfinx.errors import CompactionError, ConvergenceError, InputError
 from fingertip_dolfinx.loading import RampHold
-from fingertip_dolfinx.solver import StepOptions, TimeStepper, _distinct
+from fingertip_dolfinx.solver import StepOptions, TimeStepper, _distinct, crosses
 from fingertip_dolfinx.studies.problems import ConfinedBlock
 
 HM = mat.HOLMES_MOW_SUBCUTANEOUS
@@ -99,6 +99,18 @@ def test_closed_pores_in_a_failing_newton_iterate_are_compaction(line_search):
     assert 30.0 < float(t_start) < 40.0 and float(dt) > 0.1, message
     with pytest.raises(InputError, match="compaction_margin"):
         ConfinedBlock(1, 2, RAMP, tissue=TISSUE, compaction_margin=-0.02)
+
+
+@pytest.mark.parametrize("J0, J1, t_reach, heading", [
+    (0.50, 0.45, 3.0, True),    # falls 0.05 a second: reaches 0.4 at t = 2 s, within the step
+    (0.50, 0.45, 1.5, False),   # the same fall, but the step ends at 1.5 s (J = 0.425)
+    (1.00, 1.00, 1e3, False),   # an undrained tissue (J = 1): an iterate at J < phi0 overshot
+    (0.45, 0.50, 1e3, False),   # rising J (unloading)
+])
+def test_closed_iterates_count_as_compaction_only_where_the_states_head(J0, J1, t_reach,
+                                                                       heading):
+    """The accepted states at t = 0 and 1 s, extrapolated linearly, against phi0 = 0.4."""
+    assert crosses(0.0, J0, 1.0, J1, t_reach, 0.4) is heading
 
 
 def test_J_below_phi0_only_at_a_node_is_caught():
