@@ -2,25 +2,53 @@
 
 Prints dofs, steps, Newton iterations, Krylov iterations (GMRES orthogonalisations of the
 iterative route; 0 with MUMPS), time per step, the stepping and total wall time, and the peak
-resident memory per rank (max over ranks) and in all. Run it for two sizes and 1-2 ranks:
+resident memory per rank (max over ranks) and in all, the CPU seconds per rank and the load
+average (on a shared machine the wall time measures the neighbours too; under MPI the CPU time
+includes the ranks' busy waiting), and the assembly's share. Run it for two sizes and 1-2 ranks:
 
     .venv/bin/python benchmarks/fingertip_3d.py --min-size 0.4
     .venv/bin/python benchmarks/fingertip_3d.py --min-size 0.4 --linear iterative --set model.rigid_bone=true
     .venv/bin/mpiexec -n 2 .venv/bin/python benchmarks/fingertip_3d.py --min-size 0.4
+
+`--assembly N` only builds the scene and times N Jacobian assemblies at a smooth deformed state
+(strains of a few per cent), wall and CPU seconds: the cost of one Newton iteration's Jacobian,
+e.g. for `--set model.quadrature_degree=2` against 4.
 """
 
 import argparse
+import os
 import resource
 import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
 import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
-from fingertip_dolfinx.runner import run_scene
+import dolfinx.fem.petsc
+from fingertip_dolfinx.runner import Run, run_scene
 from fingertip_dolfinx.scene import load_scene
+
+
+class Timed:
+    """Wall and CPU time and number of calls of one of DOLFINx's SNES callbacks
+    (assemble_jacobian, assemble_residual): NonlinearProblem looks them up when it is built, so
+    wrapping the module's function first times every assembly (a reused Jacobian is not one)."""
+
+    def __init__(self, name: str):
+        self.name, self.seconds, self.cpu, self.calls = name, 0.0, 0.0, 0
+        self.function = getattr(dolfinx.fem.petsc, name)
+        setattr(dolfinx.fem.petsc, name, self)
+
+    def __call__(self, *args, **kwargs):
+        started, cpu = time.perf_counter(), time.process_time()
+        result = self.function(*args, **kwargs)
+        self.seconds += time.perf_counter() - started
+        self.cpu += time.process_time() - cpu
+        self.calls += 1
+        return result
 
 
 def main():
@@ -31,6 +59,8 @@ def main():
     parser.add_argument("--linear", choices=("direct", "iterative"), default="direct")
     parser.add_argument("--set", dest="overrides", action="append", default=[])
     parser.add_argument("--out", type=Path, default=None, help="keep the results here")
+    parser.add_argument("--assembly", type=int, default=0, metavar="N",
+                        help="only time N Jacobian assemblies")
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
     overrides = [f"solver.linear={args.linear}", *args.overrides]
@@ -39,10 +69,15 @@ def main():
     scene = load_scene(args.scene, overrides)
     out = args.out or Path(comm.bcast(tempfile.mkdtemp() if comm.rank == 0 else None))
 
+    if args.assembly:
+        return time_assembly(scene, out, args.assembly)
     PETSc.Log.begin()
-    started = time.perf_counter()
+    jacobian, residual = Timed("assemble_jacobian"), Timed("assemble_residual")
+    load = os.getloadavg()
+    started, cpu = time.perf_counter(), time.process_time()
     summary = run_scene(scene, out, progress=False)
     wall = time.perf_counter() - started
+    cpu = comm.gather(time.process_time() - cpu, root=0)
     krylov = int(PETSc.Log.Event("KSPGMRESOrthog").getPerfInfo().get("count", 0))
     rss = comm.gather(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, root=0)
     if comm.rank != 0:
@@ -55,9 +90,40 @@ def main():
           f"Krylov iterations {krylov} ({krylov / max(its, 1):.1f} per Newton iteration)")
     print(f"stepping {summary['wall_time_s']:.1f} s ({summary['wall_time_s'] / max(steps, 1):.2f}"
           f" s per step); total wall {wall:.1f} s (meshing and form compilation included)")
+    print(f"CPU time per rank {', '.join(f'{c:.0f}' for c in cpu)} s (meshing and compilation "
+          f"included); load average {load[0]:.2f} at the start, {os.getloadavg()[0]:.2f} at the "
+          f"end (the machine is shared)")
+    n_j, n_r = max(jacobian.calls, 1), max(residual.calls, 1)
+    print(f"assembly on rank 0 (wall / CPU s per call): Jacobian {jacobian.calls} x "
+          f"{jacobian.seconds / n_j:.2f} / {jacobian.cpu / n_j:.2f}, residual {residual.calls} x "
+          f"{residual.seconds / n_r:.3f} / {residual.cpu / n_r:.3f}; quadrature degree "
+          f"{scene.model.quadrature_degree}")
     print(f"peak memory: {max(rss):.0f} MiB per rank (max), {sum(rss):.0f} MiB in all")
     print(f"peak force {summary['peak_force_N']:.4g} N (x{summary['mirror_factor']} for the "
           f"whole finger); results in {out}")
+
+
+def time_assembly(scene, out: Path, repeats: int) -> None:
+    """Wall and CPU seconds of one Jacobian assembly (min over `repeats`) at a smooth state."""
+    comm = MPI.COMM_WORLD
+    job = Run(scene, out, comm, resume=False, progress=False)
+    problem, nonlinear = job.problem, job.stepper.nonlinear
+    problem.u.interpolate(lambda x: np.array([0.02 * x[0], -0.05 * x[1] + 0.03 * np.sin(x[2]),
+                                              0.01 * x[2]]))
+    dolfinx.fem.petsc.assign(problem.unknowns, nonlinear.x)
+    J, P, (assemble, args, kargs) = nonlinear.solver.getJacobian()
+    walls, cpus = [], []
+    for _ in range(repeats):
+        wall, cpu = time.perf_counter(), time.process_time()
+        assemble(nonlinear.solver, nonlinear.x, J, P, *args, **(kargs or {}))
+        walls.append(time.perf_counter() - wall)
+        cpus.append(time.process_time() - cpu)
+    cpu = comm.gather(min(cpus), root=0)
+    if comm.rank == 0:
+        print(f"Jacobian assembly, quadrature degree {scene.model.quadrature_degree}, "
+              f"{job.fm.mesh.topology.index_map(3).size_global} cells, {job.dofs} dofs, "
+              f"{comm.size} rank(s): min over {repeats} calls {min(walls):.2f} s wall, CPU per "
+              f"rank {', '.join(f'{c:.2f}' for c in cpu)} s; load average {os.getloadavg()[0]:.2f}")
 
 
 if __name__ == "__main__":

@@ -27,6 +27,7 @@ from scipy.optimize import brentq
 from fingertip_dolfinx import materials as mat
 from fingertip_dolfinx.indenters import Bar, Sphere
 from fingertip_dolfinx.loading import RampHold
+from fingertip_dolfinx.model import ModelOptions
 from fingertip_dolfinx.problem import FingertipProblem
 from fingertip_dolfinx.solver import DEFAULT_PETSC_OPTIONS, StepOptions, TimeStepper
 from fingertip_dolfinx.studies.problems import (
@@ -129,6 +130,11 @@ def block():
     return layered_block(MPI.COMM_WORLD)
 
 
+#: The 3D scenes' quadrature degree (data/scenes/*-3d.toml), so that the sphere's forms are
+#: test_run3d.py's probe's.
+THREE_D = ModelOptions(quadrature_degree=2)
+
+
 # The bar's forms compile for ~4 min on a cold cache (the sphere's are shared with
 # test_run3d.py's): it runs with the slow studies.
 @pytest.mark.parametrize("indenter", [Sphere(radius=2.0, centre_z=3.0),
@@ -137,7 +143,7 @@ def block():
                          ids=["sphere", "bar-x"])
 def test_layered_block_indenter_force_equals_support_reaction(block, indenter):
     history = RampHold(0.3, 1.0, 1.5)
-    problem = FingertipProblem(block, [indenter], history)
+    problem = FingertipProblem(block, [indenter], history, options=THREE_D)
     assert problem.p is not None  # the biphasic subcutaneous tissue: P2/P1 on the submesh
     assert problem.force_keys == ("force_N", "reaction_N") and problem.mirror_factor == 2
     stepper = TimeStepper(problem, StepOptions(dt_initial=0.25, dt_max=0.5),
