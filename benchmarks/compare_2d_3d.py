@@ -32,11 +32,17 @@ def at(table: dict, t: float) -> dict:
 
 
 def half_width(x: np.ndarray, w: np.ndarray) -> float:
-    """The distance from the load axis at which the deflection falls to half its peak."""
-    order = np.argsort(np.abs(x))
-    x, w = np.abs(x[order]), w[order]
-    below = np.flatnonzero(w < 0.5 * np.nanmax(w))
-    return float(x[below[0]]) if len(below) else float("nan")
+    """The distance from the load axis at which the deflection falls to half its peak, on the
+    side x >= 0 (the half model's), interpolated linearly between the profile's points."""
+    side = x >= 0
+    order = np.argsort(x[side])
+    x, w = x[side][order], w[side][order]
+    half = 0.5 * np.nanmax(w)
+    below = np.flatnonzero(w < half)
+    if not len(below) or below[0] == 0:
+        return float("nan")
+    i = below[0]
+    return float(x[i - 1] + (x[i] - x[i - 1]) * (w[i - 1] - half) / (w[i - 1] - w[i]))
 
 
 def under_load(depth: dict, d: float, x0: float = 0.0) -> dict:
@@ -115,6 +121,7 @@ def _figure(out: Path, times, h2, surf2, across, along, line) -> None:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
     fig.tight_layout()
+    Path(out).mkdir(parents=True, exist_ok=True)
     fig.savefig(Path(out) / "compare_2d_3d.png", dpi=150)
     print(f"figure: {Path(out) / 'compare_2d_3d.png'}")
 
