@@ -23,7 +23,7 @@ from .errors import InputError
 #: The columns of the result files (stable names: other tools read them).
 HISTORY_COLUMNS = ("time_s", "indenter_displacement_mm", "force_N_per_mm", "newton_iterations",
                    "dt_s", "reaction_N_per_mm", "max_penetration_mm", "min_J", "cuts",
-                   "wall_time_s")
+                   "wall_time_s", "krylov_iterations")
 SURFACE_COLUMNS = ("x_mm", "time_s", "deflection_mm")
 #: A 3D run's: forces in N (a half model's are its own half: summary.json's `mirror_factor`
 #: gives the whole finger's), profiles across and along the finger, f(z) per unit length.
@@ -220,6 +220,8 @@ def run_summary(out: Path, record: dict, mesh_report, dofs: int, ranks: int, *, 
         "dofs": dofs,
         "time_steps": len(times),
         "newton_iterations": int(np.nansum(h.get("newton_iterations", [0]))),
+        # Krylov iterations (= Newton iterations with the direct solver; 0 in older runs).
+        "krylov_iterations": int(np.nansum(h.get("krylov_iterations", [0]))),
         "wall_time_s": wall,
         "converged": converged,
         "failure": failure,

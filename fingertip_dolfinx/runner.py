@@ -216,7 +216,8 @@ class Run:
             column_force: d[force], "newton_iterations": report.newton_iterations,
             "dt_s": report.dt, column_reaction: d[reaction],
             "max_penetration_mm": d["max_penetration_mm"], "min_J": d["min_J"],
-            "cuts": report.cuts, "wall_time_s": report.wall_time_s}])
+            "cuts": report.cuts, "wall_time_s": report.wall_time_s,
+            "krylov_iterations": report.linear_iterations}])
         at_output = any(abs(report.time - t) < 1e-9 for t in self.scene.output_times)
         if at_output or self.step_count % self.scene.field_every == 0:
             self.derived.update()

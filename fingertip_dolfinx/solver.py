@@ -216,6 +216,9 @@ class StepReport:
     newton_iterations: int
     cuts: int
     wall_time_s: float
+    #: Krylov iterations of the step's solves, retries included (one per Newton iteration
+    #: with the direct solver).
+    linear_iterations: int = 0
     diagnostics: dict[str, float] = field(default_factory=dict)
     next_dt: float = math.nan  # the step size planned next (a checkpoint stores it)
     #: Error control: the accepted step's error estimate over the tolerance (<= 1), and the
@@ -368,7 +371,7 @@ class TimeStepper:
         self._peaks = [_max_abs(f) for f in problem.unknowns]
         resolve = _period_limit(history, opts.steps_per_period)
         while t < end_time - 1e-12 * max(1.0, end_time):
-            started = wallclock.perf_counter()
+            started, linear_before = wallclock.perf_counter(), self.linear_iterations
             dt = resolve(t, dt)
             cuts, why, closed_iterates = 0, "", 0
             rejected, extra_iterations = 0, 0
@@ -475,6 +478,7 @@ class TimeStepper:
                 newton_iterations=iterations + extra_iterations,
                 cuts=cuts,
                 wall_time_s=wallclock.perf_counter() - started,
+                linear_iterations=self.linear_iterations - linear_before,
                 diagnostics=diagnostics,
                 error=err if error_control else math.nan,
                 rejected=rejected,

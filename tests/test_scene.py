@@ -48,6 +48,15 @@ def test_run_writes_every_documented_output(one_point_run):
         assert (out / name).exists(), name
 
 
+def test_history_counts_one_direct_solve_per_newton_iteration(one_point_run):
+    """MUMPS (preonly) solves each Newton iteration's system in one "Krylov iteration", so the
+    per-step Krylov column must equal the Newton column and the summary's totals agree."""
+    out, summary = one_point_run
+    h = read_csv(out / "history.csv")
+    assert np.array_equal(h["krylov_iterations"], h["newton_iterations"])
+    assert summary["krylov_iterations"] == summary["newton_iterations"] > 0
+
+
 def test_force_equals_the_support_reaction_at_every_step(one_point_run):
     """Equilibrium of the discrete problem, to the Newton tolerance: the residual's norm is
     below max(1e-9 ‖R0‖, 1e-10 N/mm) (DEFAULT_PETSC_OPTIONS), and so is the force mismatch."""
