@@ -98,6 +98,15 @@ class ModelOptions:
             raise InputError(
                 "model.displacement_degree", f"got {self.displacement_degree}.", "use 1, 2 or 3."
             )
+        # The stiffness of degree-k elements is a polynomial of degree 2(k − 1) on affine
+        # cells: a lower rule under-integrates it (spurious zero-energy modes).
+        lowest = max(1, 2 * (self.displacement_degree - 1))
+        if not (isinstance(self.quadrature_degree, int) and self.quadrature_degree >= lowest):
+            raise InputError(
+                "model.quadrature_degree",
+                f"got {self.quadrature_degree!r} for displacement degree "
+                f"{self.displacement_degree}, whose stiffness needs degree {lowest} or more.",
+                f"use an integer >= {lowest} (the 2D scenes use 4, the 3D ones 2).")
         if self.subcutaneous not in SUBCUTANEOUS_MODELS:
             raise InputError(
                 "model.subcutaneous", f"unknown model {self.subcutaneous!r}.",

@@ -260,3 +260,20 @@ def test_densities_are_read_recorded_and_required_by_region():
         tissues_from_dict(data).densities()
     with pytest.raises(InputError, match=r"nail\.density: must be positive"):
         load_materials("wu2004", {"nail": {"density": 0.0}})
+
+
+@pytest.mark.parametrize("options, where", [
+    ({"quadrature_degree": 1}, "model.quadrature_degree"),  # P2 stiffness is degree 2
+    ({"quadrature_degree": 2.5}, "model.quadrature_degree"),
+    ({"displacement_degree": 3, "quadrature_degree": 3}, "model.quadrature_degree"),
+    ({"displacement_degree": 4}, "model.displacement_degree"),
+    ({"tissue": "continuum", "continuum_nu": 0.5}, "model.continuum_E/continuum_nu"),
+])
+def test_options_refuse_what_cannot_be_computed(options, where):
+    with pytest.raises(InputError, match=where.replace("/", ".")):
+        ModelOptions(**options)
+
+
+@pytest.mark.parametrize("k, q", [(1, 1), (2, 2), (3, 4)])
+def test_options_accept_the_lowest_exact_stiffness_rule(k, q):
+    assert ModelOptions(displacement_degree=k, quadrature_degree=q, subcutaneous="drained")
