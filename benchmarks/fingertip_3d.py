@@ -30,25 +30,7 @@ import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
 import dolfinx.fem.petsc
 from fingertip_dolfinx.runner import Run, run_scene
 from fingertip_dolfinx.scene import load_scene
-
-
-class Timed:
-    """Wall and CPU time and number of calls of one of DOLFINx's SNES callbacks
-    (assemble_jacobian, assemble_residual): NonlinearProblem looks them up when it is built, so
-    wrapping the module's function first times every assembly (a reused Jacobian is not one)."""
-
-    def __init__(self, name: str):
-        self.name, self.seconds, self.cpu, self.calls = name, 0.0, 0.0, 0
-        self.function = getattr(dolfinx.fem.petsc, name)
-        setattr(dolfinx.fem.petsc, name, self)
-
-    def __call__(self, *args, **kwargs):
-        started, cpu = time.perf_counter(), time.process_time()
-        result = self.function(*args, **kwargs)
-        self.seconds += time.perf_counter() - started
-        self.cpu += time.process_time() - cpu
-        self.calls += 1
-        return result
+from timing import tally
 
 
 def main():
@@ -72,7 +54,8 @@ def main():
     if args.assembly:
         return time_assembly(scene, out, args.assembly)
     PETSc.Log.begin()
-    jacobian, residual = Timed("assemble_jacobian"), Timed("assemble_residual")
+    jacobian = tally(dolfinx.fem.petsc, "assemble_jacobian")
+    residual = tally(dolfinx.fem.petsc, "assemble_residual")
     load = os.getloadavg()
     started, cpu = time.perf_counter(), time.process_time()
     summary = run_scene(scene, out, progress=False)
@@ -93,11 +76,10 @@ def main():
     print(f"CPU time per rank {', '.join(f'{c:.0f}' for c in cpu)} s (meshing and compilation "
           f"included); load average {load[0]:.2f} at the start, {os.getloadavg()[0]:.2f} at the "
           f"end (the machine is shared)")
-    n_j, n_r = max(jacobian.calls, 1), max(residual.calls, 1)
+    (jw, jc), (rw, rc) = jacobian.per_call(), residual.per_call()
     print(f"assembly on rank 0 (wall / CPU s per call): Jacobian {jacobian.calls} x "
-          f"{jacobian.seconds / n_j:.2f} / {jacobian.cpu / n_j:.2f}, residual {residual.calls} x "
-          f"{residual.seconds / n_r:.3f} / {residual.cpu / n_r:.3f}; quadrature degree "
-          f"{scene.model.quadrature_degree}")
+          f"{jw:.2f} / {jc:.2f}, residual {residual.calls} x {rw:.3f} / {rc:.3f}; quadrature "
+          f"degree {scene.model.quadrature_degree}")
     print(f"peak memory: {max(rss):.0f} MiB per rank (max), {sum(rss):.0f} MiB in all")
     print(f"peak force {summary['peak_force_N']:.4g} N (x{summary['mirror_factor']} for the "
           f"whole finger); results in {out}")

@@ -49,6 +49,7 @@ from fingertip_dolfinx.outputs import read_csv
 from fingertip_dolfinx.runner import Run
 from fingertip_dolfinx.scene import load_scene
 from fingertip_dolfinx.studies.keys import KEYS, key_outputs, relative_errors
+from timing import tally
 
 EVENTS = {"residual": "SNESFunctionEval", "jacobian": "SNESJacobianEval",
           "factorisation": "MatLUFactorNum", "solve": "KSPSolve", "triangular": "MatSolve"}
@@ -71,7 +72,7 @@ def main():
     PETSc.Log.begin()
     started, cpu = time.perf_counter(), time.process_time()
     job = Run(scene, out, comm, resume=False, progress=False)
-    writing = _timed(job, "on_step")  # the results written after each step, pictures too
+    writing = tally(job, "on_step")  # the results written after each step, pictures too
     stepping, stepping_cpu = time.perf_counter(), time.process_time()
     job.run()
     stepping, stepping_cpu = (time.perf_counter() - stepping,
@@ -83,7 +84,7 @@ def main():
     per_step_cpu = _one_iteration_cpu(job.stepper)  # after the counts: it adds to them
     summary = job.finish(True, None, time.perf_counter() - started)
     wall, cpu = time.perf_counter() - started, time.process_time() - cpu
-    solving = stepping - writing[0]
+    solving = stepping - writing.wall
     if comm.rank != 0:
         return
     h = read_csv(out / "history.csv")
@@ -113,7 +114,7 @@ def main():
           + ("" if reuse is None else f"; Jacobians kept {kept[1]} (reuse threshold "
                                       f"{reuse.threshold:g})"))
     print(f"wall time {wall:.1f} s: stepping {stepping:.1f} s = solving {solving:.1f} s + "
-          f"writing results {writing[0]:.1f} s (profiles, fields, pictures); the rest is "
+          f"writing results {writing.wall:.1f} s (profiles, fields, pictures); the rest is "
           "meshing, form compilation and the summary's figures")
     # On a shared machine wall time counts the other processes' turns; CPU time of this
     # process (rank 0) is the one-core cost.
@@ -167,21 +168,6 @@ def _one_iteration_cpu(stepper, repeats: int = 5) -> tuple[float, float, float]:
         t3 = time.process_time()
         best = [min(b, v) for b, v in zip(best, (t1 - t0, t2 - t1, t3 - t2))]
     return tuple(best)
-
-
-def _timed(obj, name: str) -> list[float]:
-    """Wrap the method `name` of `obj` to add its wall time to the returned one-item list."""
-    total, method = [0.0], getattr(obj, name)
-
-    def timed(*args, **kwargs):
-        started = time.perf_counter()
-        try:
-            return method(*args, **kwargs)
-        finally:
-            total[0] += time.perf_counter() - started
-
-    setattr(obj, name, timed)
-    return total
 
 
 if __name__ == "__main__":
