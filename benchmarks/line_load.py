@@ -24,6 +24,20 @@ Why the ratio stays near 6 on the line load (measured, 2026-11-23; counts from P
 - Quadrature degree 2 (3 points instead of 6; 2k - 2 for P2 keeps the optimal rate) makes a
   Jacobian ~35 % cheaper but the force moves by 2e-4 (1.1794e-3 against 1.1796e-3 N/mm:
   not the same 4 digits) and Newton takes 206 factorisations: kept at 4.
+Why the ramp's Newton converges only linearly (line-load-1pct, 2026-11-23, stepping CPU over
+its own bound 4.4-4.6 in repeated runs): with the bt line search taking full steps (λ = 1,
+`snes_linesearch_monitor`) the residual falls by ~0.3 per iteration (e.g. 8.8e-3, 1.0e-3,
+3.7e-4, 1.3e-4, 5.8e-5, 1.1e-5, 2.0e-6 N/mm over the last ramp step), while the Jacobian is
+exact: J d equals the residual's central difference to O(ε²) mid-ramp
+(tests/test_line_load.py). So the contact set changes between iterates as the zone grows
+around the tip. Tried on the preset (Newton its / LU / stepping CPU over the bound): l2 and cp
+line searches 87 / 79-95 / 5.4; newtontr 100 / 109 / 5.5; quasi-Newton (L-BFGS scaled by the
+Jacobian) 262 its, 13 cuts, 5.3; Broyden: PETSc error 73; Anderson or NGMRES around one Newton
+step: DIVERGED_INNER at the first touch; contact smoothing 1 µm instead of 0.1 µm 77 / 87 /
+5.0 (and it moves the deflections); snes_atol 3e-6 / 1e-5 / 3e-5: 4.4 / 5.6 / 6.9 (looser
+tolerances leave worse iterates, steps are cut); snes_stol 1e-4 4.4, 1e-3 inverted elements;
+a drained pulp or an elastic skin 5.3 / 4.9. None reaches 2.5.
+
 On a shared machine PETSc's event times (wall) include the other processes' turns: the
 script also prints this process's CPU time for the stepping and, measured by itself at the
 final state, for one Jacobian + LU + solve, the bound in CPU time. `--reference

@@ -8,6 +8,7 @@ A mesh too coarse for the tip must not pass silently (TipResolutionWarning).
 import dataclasses
 import warnings
 
+import dolfinx.fem.petsc
 import numpy as np
 import pytest
 from mpi4py import MPI
@@ -132,3 +133,73 @@ def test_line_load_deflection_changes_little_during_the_hold(line_load):
     (x, w1), (_, w100) = profiles[1.0], profiles[100.0]
     assert np.max(np.abs(w100 - w1)) < 0.1
     assert abs(x[np.argmax(w1)]) < 0.1 and np.max(w1) == pytest.approx(1.0, abs=0.05)
+
+
+class _Stop(Exception):
+    pass
+
+
+def _mid_ramp(tmp_path, t_stop: float):
+    """The `line-load-1pct` scene stepped to the first accepted state at or after `t_stop`,
+    then moved to the next step's time: (stepper, problem) ready for a Newton iteration."""
+    from fingertip_dolfinx.runner import Run
+
+    scene = load_scene("line-load-1pct", ["protocol.end_time=1.0", "output.times=[1.0]"])
+    job = Run(scene, tmp_path, MPI.COMM_WORLD, resume=False, progress=False)
+    record = job.on_step
+
+    def on_step(report):
+        record(report)
+        if report.time >= t_stop:
+            job.problem.set_time(report.time + report.next_dt)
+            raise _Stop
+
+    job.on_step = on_step
+    with pytest.raises(_Stop):
+        job.run()
+    return job.stepper, job.problem
+
+
+def test_jacobian_is_the_residuals_derivative_in_contact(shared_tmp_path):
+    """Mid-ramp (0.3 mm into the wedge; penalty contact, biphasic pulp, QLV skin), the
+    assembled Jacobian times the Newton direction d equals the central difference
+    (R(x + εd) − R(x − εd)) / 2ε to O(ε²): the error falls ~100× per decade of ε. A tangent
+    missing a term would leave an O(1) error. (The ramp's steps converge linearly, at ~0.3
+    per iteration with full steps, because the contact set changes between iterates: the
+    README's "Speed" paragraph; this test rules out the other cause.)"""
+    from petsc4py import PETSc
+
+    stepper, problem = _mid_ramp(shared_tmp_path, 0.3)
+    snes, x = stepper.snes, stepper.nonlinear.x
+    dolfinx.fem.petsc.assign(problem.unknowns, x)  # the accepted state, at the new time
+    F, J = x.duplicate(), snes.getJacobian()[0]
+    snes.computeFunction(x, F)
+    if stepper.reuse is not None:
+        stepper.reuse.start()
+    snes.computeJacobian(x, J, J)
+    ksp = PETSc.KSP().create(x.comm)
+    ksp.setOperators(J)
+    ksp.setType("preonly")
+    ksp.getPC().setType("lu")
+    ksp.getPC().setFactorSolverType("mumps")
+    d = x.duplicate()
+    ksp.solve(F, d)
+    Jd = x.duplicate()
+    J.mult(d, Jd)
+
+    def error(eps):
+        plus, minus, fp, fm = x.copy(), x.copy(), x.duplicate(), x.duplicate()
+        plus.axpy(eps, d)
+        minus.axpy(-eps, d)
+        snes.computeFunction(plus, fp)
+        snes.computeFunction(minus, fm)
+        fp.axpy(-1.0, fm)
+        fp.scale(0.5 / eps)
+        fp.axpy(-1.0, Jd)
+        return fp.norm() / Jd.norm()
+
+    coarse, fine = error(1e-2), error(1e-3)
+    print(f"central-difference error of J d: {coarse:.2e} (eps 1e-2), {fine:.2e} (1e-3)")
+    assert fine < 1e-5
+    assert coarse / fine > 20  # second order: 100; first order (a wrong tangent): <= 10
+    ksp.destroy()
