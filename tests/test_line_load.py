@@ -160,6 +160,7 @@ def _mid_ramp(tmp_path, t_stop: float):
     return job.stepper, job.problem
 
 
+@pytest.mark.mpi
 def test_jacobian_is_the_residuals_derivative_in_contact(shared_tmp_path):
     """Mid-ramp (0.3 mm into the wedge; penalty contact, biphasic pulp, QLV skin), the
     assembled Jacobian times the Newton direction d equals the central difference
