@@ -305,13 +305,7 @@ def _set_sizes(section: Section, regions: dict[str, list[int]], curves: dict[str
     field.setNumbers(distance, "CurvesList", curves["refinement_zone"])
     # Sample the zone twice per fine element, so that its distance is accurate to min_size / 4.
     field.setNumber(distance, "Sampling", math.ceil(2 * zone_length / opts.min_size))
-    graded = field.add("Threshold")
-    field.setNumber(graded, "InField", distance)
-    field.setNumber(graded, "SizeMin", opts.min_size)
-    field.setNumber(graded, "SizeMax", opts.bone_size)
-    field.setNumber(graded, "DistMin", opts.refine_depth)
-    growth_distance = (opts.bone_size - opts.min_size) / SIZE_GROWTH
-    field.setNumber(graded, "DistMax", opts.refine_depth + growth_distance)
+    graded = graded_size(distance, opts.min_size, opts.refine_depth, opts.bone_size)
     cap = field.add("Constant")  # max_size everywhere but inside the bone
     field.setNumber(cap, "VIn", opts.bone_size)
     field.setNumber(cap, "VOut", opts.max_size)
@@ -328,14 +322,7 @@ def _set_sizes(section: Section, regions: dict[str, list[int]], curves: dict[str
             raise RuntimeError(f"tip points {opts.tips} did not all become mesh vertices")
         near_tip = field.add("Distance")
         field.setNumbers(near_tip, "PointsList", vertices)
-        tip = field.add("Threshold")
-        field.setNumber(tip, "InField", near_tip)
-        field.setNumber(tip, "SizeMin", opts.tip_size)
-        field.setNumber(tip, "SizeMax", opts.bone_size)
-        field.setNumber(tip, "DistMin", opts.tip_zone)
-        growth_distance = (opts.bone_size - opts.tip_size) / SIZE_GROWTH
-        field.setNumber(tip, "DistMax", opts.tip_zone + growth_distance)
-        fields.append(tip)
+        fields.append(graded_size(near_tip, opts.tip_size, opts.tip_zone, opts.bone_size))
     fields += _spot_fields(section)
     size = field.add("Min")
     field.setNumbers(size, "FieldsList", fields)
@@ -351,6 +338,18 @@ def _set_sizes(section: Section, regions: dict[str, list[int]], curves: dict[str
     # segment, such as a nail end shorter than the element size: ask for two at least.
     for kind in ("Curve", "Line"):
         gmsh.option.setNumber(f"Mesh.Minimum{kind}Nodes", 3)
+
+
+def graded_size(distance: int, size: float, within: float, far: float) -> int:
+    """A gmsh Threshold field on the Distance field `distance`: `size` within `within` (mm) of
+    its entities, growing by SIZE_GROWTH per mm beyond to `far`. Returns its tag."""
+    field = gmsh.model.mesh.field
+    tag = field.add("Threshold")
+    field.setNumber(tag, "InField", distance)
+    for key, value in (("SizeMin", size), ("SizeMax", far), ("DistMin", within),
+                       ("DistMax", within + (far - size) / SIZE_GROWTH)):
+        field.setNumber(tag, key, value)
+    return tag
 
 
 def _spot_fields(section: Section) -> list[int]:

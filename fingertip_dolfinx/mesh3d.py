@@ -43,7 +43,8 @@ import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
 from .geometry import Ellipse
 from .geometry3d import Fingertip3D, ellipsoid_distance
 from .mesh import (CELL_TAGS, FACET_TAGS_3D, SIZE_GROWTH, FingertipMesh, MeshReport, _add_nail,
-                   _ellipse_curve, _ellipse_loop, _gmsh_model, element_report, region_areas)
+                   _ellipse_curve, _ellipse_loop, _gmsh_model, element_report, graded_size,
+                   region_areas)
 
 #: Sections of the lofted rounded ends (`_dome`), at alpha = 0 .. CAP_LAST_ANGLE (deg): with 12
 #: the skin on the cap is 0.798-0.804 mm thick (0.8 ideal; the module's docstring).
@@ -266,11 +267,7 @@ def _set_sizes(tip: Fingertip3D, regions, faces) -> None:
     # Points per direction of each face: two per fine element along the longest extent.
     extent = max(0.5 * tip.outer.perimeter, L)
     field.setNumber(depth, "Sampling", math.ceil(2 * extent / opts.min_size))
-    near_pulp = field.add("Threshold")
-    field.setNumber(near_pulp, "InField", depth)
-    for key, value in (("SizeMin", opts.min_size), ("SizeMax", opts.bone_size),
-                       ("DistMin", opts.refine_depth), ("DistMax", opts.refine_depth + growth)):
-        field.setNumber(near_pulp, key, value)
+    near_pulp = graded_size(depth, opts.min_size, opts.refine_depth, opts.bone_size)
     footprint = field.add("Box")  # the zone's extent in x and z (all y)
     w, big = opts.refine_half_width, 10.0 * L
     for key, value in (("VIn", opts.min_size), ("VOut", opts.bone_size), ("XMin", -w),

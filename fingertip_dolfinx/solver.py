@@ -216,8 +216,8 @@ class StepReport:
     newton_iterations: int
     cuts: int
     wall_time_s: float
-    #: Krylov iterations of the step's solves, retries included (one per Newton iteration
-    #: with the direct solver).
+    #: Krylov iterations of the Newton iterations counted in `newton_iterations` (one per
+    #: Newton iteration with the direct solver; attempts that were cut count in neither).
     linear_iterations: int = 0
     diagnostics: dict[str, float] = field(default_factory=dict)
     next_dt: float = math.nan  # the step size planned next (a checkpoint stores it)
@@ -263,7 +263,7 @@ class TimeStepper:
         self.snes = self.nonlinear.solver
         self.linear.attach(self.nonlinear, prefix, opts)
         #: Krylov iterations of all solves so far (1 per Newton step with the direct solver).
-        self.linear_iterations = 0
+        self.linear_iterations, self._last_linear = 0, 0
         self._watch_residual()
         self._set_dynamics()
         #: Jacobian (and factorisation) reuse within a step (StepOptions.jacobian_reuse).
@@ -332,7 +332,8 @@ class TimeStepper:
             self.reuse.start()
         with np.errstate(all="ignore"):
             self.nonlinear.solve()
-        self.linear_iterations += self.snes.getLinearSolveIterations()
+        self._last_linear = self.snes.getLinearSolveIterations()
+        self.linear_iterations += self._last_linear
         return self.snes.getConvergedReason(), self.snes.getIterationNumber()
 
     def run(
@@ -374,7 +375,7 @@ class TimeStepper:
             started, linear_before = wallclock.perf_counter(), self.linear_iterations
             dt = resolve(t, dt)
             cuts, why, closed_iterates = 0, "", 0
-            rejected, extra_iterations = 0, 0
+            rejected, extra_iterations, cut_linear = 0, 0, 0
             restart = error_control and len(since) == 1
             saved = _save(problem) if restart else None
             t_first = None  # the end of this step's first attempt
@@ -450,6 +451,7 @@ class TimeStepper:
                                                            nodes=reason > 0))
                         + f" Results up to t = {a} s are saved.")
                 cuts += 1
+                cut_linear += self._last_linear  # uncounted, like the attempt's Newton its
                 dt = (t_new - t) * opts.cut
                 if cuts > opts.max_cuts or dt < opts.dt_min:
                     problem.set_time(t)
@@ -478,7 +480,7 @@ class TimeStepper:
                 newton_iterations=iterations + extra_iterations,
                 cuts=cuts,
                 wall_time_s=wallclock.perf_counter() - started,
-                linear_iterations=self.linear_iterations - linear_before,
+                linear_iterations=self.linear_iterations - linear_before - cut_linear,
                 diagnostics=diagnostics,
                 error=err if error_control else math.nan,
                 rejected=rejected,

@@ -147,3 +147,20 @@ def test_jacobian_reuse_reaches_the_same_states_with_fewer_factorisations():
     full, reused = settlements[0.0], settlements[0.02]
     assert len(full) == len(reused) == 20
     assert np.max(np.abs(reused - full)) < 1e-8 * np.max(np.abs(full))
+
+
+def test_krylov_column_counts_the_newton_iterations_it_reports(shared_tmp_path):
+    """With MUMPS every Newton iteration is one linear solve of one "Krylov iteration", so the
+    history's per-step Krylov count must equal its Newton count also in steps whose first
+    attempt failed and was cut (that attempt counts in neither). A 0.02 s first step of the
+    line load fails at the first touch and is cut, as does one later ramp step."""
+    from fingertip_dolfinx.outputs import read_csv
+    from fingertip_dolfinx.runner import run_scene
+    from fingertip_dolfinx.scene import load_scene
+
+    scene = load_scene("line-load-1pct", ["steps.dt_initial=0.02", "protocol.end_time=1.0",
+                                          "output.times=[1.0]"])
+    run_scene(scene, shared_tmp_path, progress=False)
+    h = read_csv(shared_tmp_path / "history.csv")
+    assert h["cuts"].sum() >= 1
+    assert np.array_equal(h["krylov_iterations"], h["newton_iterations"])
