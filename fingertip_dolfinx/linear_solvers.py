@@ -32,8 +32,8 @@ failed with both rigid; 0.01 is kept. So the iterative route is meant for rigid 
 0.1 mm); with them elastic it converges on coarse meshes, slowly. MUMPS stays the default: in
 2D it is 3-5x faster at these sizes (LU fill ~ n log n); the Krylov route is for 3D. There
 (benchmarks/fingertip_3d.py, the 3D line load's first 0.025 s steps, bone and nail rigid,
-quadrature degree 2): 59.6, 57.4, 61.1 and 97.7 FGMRES iterations per Newton step at h = 0.8,
-0.57, 0.4 and 0.2 mm (25k to 486k dofs: 1.64x over h/4, most of it from 0.4 to 0.2 mm).
+quadrature degree 2): 59.6, 57.4, 61.1 and 97.0 FGMRES iterations per Newton step at h = 0.8,
+0.57, 0.4 and 0.2 mm (25k to 486k dofs: 1.63x over h/4, most of it from 0.4 to 0.2 mm).
 
 Both are chosen by scene data (`[solver] linear = "direct" | "iterative"`); any PETSc option
 given in `[solver]` overrides the configuration's (under the stepper's prefix:
