@@ -25,7 +25,7 @@ Why the ratio stays near 6 on the line load (measured, 2026-11-23; counts from P
   Jacobian ~35 % cheaper but the force moves by 2e-4 (1.1794e-3 against 1.1796e-3 N/mm:
   not the same 4 digits) and Newton takes 206 factorisations: kept at 4.
 Why the ramp's Newton converges only linearly (line-load-1pct, 2026-11-23, stepping CPU over
-its own bound 4.4-4.6 in repeated runs): with the bt line search taking full steps (λ = 1,
+its own bound 4.5-4.6 in repeated runs): with the bt line search taking full steps (λ = 1,
 `snes_linesearch_monitor`) the residual falls by ~0.3 per iteration (e.g. 8.8e-3, 1.0e-3,
 3.7e-4, 1.3e-4, 5.8e-5, 1.1e-5, 2.0e-6 N/mm over the last ramp step), while the Jacobian is
 exact: J d equals the residual's central difference to O(ε²) mid-ramp
