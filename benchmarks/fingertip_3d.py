@@ -1,10 +1,11 @@
 """Benchmark: a 3D fingertip scene (the 3D line load by default) at one mesh size and solver.
 
 Prints dofs, steps, Newton iterations, Krylov iterations (of the iterative route; 0 with
-MUMPS; history.csv has them per step, so a run stopped early still tells them), time per step, the stepping and total wall time, and the peak
-resident memory per rank (max over ranks) and in all, the CPU seconds per rank and the load
-average (on a shared machine the wall time measures the neighbours too; under MPI the CPU time
-includes the ranks' busy waiting), and the assembly's share. Run it for two sizes and 1-2 ranks:
+MUMPS; history.csv has them per step, so a run stopped early still tells them), time per
+step, the stepping and total wall time, the peak resident memory per rank (max over ranks)
+and in all, the CPU seconds per rank and the load average (on a shared machine the wall time
+measures the neighbours too; under MPI the CPU time includes the ranks' busy waiting), and
+the assembly's share. Run it for two sizes and 1-2 ranks:
 
     .venv/bin/python benchmarks/fingertip_3d.py --min-size 0.4
     .venv/bin/python benchmarks/fingertip_3d.py --min-size 0.4 --linear iterative --set model.rigid_bone=true
@@ -24,7 +25,6 @@ from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
-from petsc4py import PETSc
 
 import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
 import dolfinx.fem.petsc
@@ -53,7 +53,6 @@ def main():
 
     if args.assembly:
         return time_assembly(scene, out, args.assembly)
-    PETSc.Log.begin()
     jacobian = tally(dolfinx.fem.petsc, "assemble_jacobian")
     residual = tally(dolfinx.fem.petsc, "assemble_residual")
     load = os.getloadavg()

@@ -39,9 +39,14 @@ SECTIONS_DIR = builtin_dir("sections")
 MIN_TISSUE_GAP = 0.1
 
 
+def _is_number(value) -> bool:
+    """A finite int or float; bool is an int in Python: `thickness = true` must not pass as 1."""
+    return (isinstance(value, int | float) and not isinstance(value, bool)
+            and math.isfinite(value))
+
+
 def _number(where: str, value) -> float:
-    # bool is an int in Python: `thickness = true` must not pass as 1 mm.
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+    if not _is_number(value):
         raise InputError(where, f"must be a finite number, got {value!r}.", "write a number.")
     return float(value)
 
@@ -165,10 +170,7 @@ class MeshOptions:
         for key in ("min_size", "max_size", "bone_size", "refine_half_width", "refine_depth",
                     "tip_size", "tip_zone", "spot_size", "spot_zone"):
             _positive(f"mesh.{key}", _number(f"mesh.{key}", getattr(self, key)))
-        if isinstance(self.tips, int | float) or not all(
-            isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
-            for x in self.tips
-        ):
+        if isinstance(self.tips, int | float) or not all(_is_number(x) for x in self.tips):
             raise InputError("mesh.tips", f"must be a list of x positions (mm), got {self.tips!r}.",
                              "write e.g. tips = [0.0].")
         object.__setattr__(self, "tips", tuple(float(x) for x in self.tips))
@@ -210,9 +212,8 @@ class MeshOptions:
     def _check_spots(self):
         pairs = self.spots
         ok = not isinstance(pairs, str | dict) and all(
-            isinstance(p, list | tuple) and len(p) == 2
-            and all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-                    for v in p) and p[1] > 0 for p in pairs)
+            isinstance(p, list | tuple) and len(p) == 2 and all(_is_number(v) for v in p)
+            and p[1] > 0 for p in pairs)
         if not ok:
             raise InputError("mesh.spots", f"must be a list of [x, depth] pairs (mm, depth > 0), "
                              f"got {pairs!r}.", "write e.g. spots = [[0.0, 0.75]].")

@@ -159,13 +159,13 @@ def run_sweep(scene_name: str, spacings, out: Path, overrides=(), progress=True,
     overrides = list(overrides)
     if population and not any(str(o).startswith("output.receptors") for o in overrides):
         overrides.append('output.receptors="default"')
-    run_side_by_side([(scene, out / f"d{d:g}") for d, scene in
-                      zip(spacings, sweep_scenes(scene_name, spacings, overrides, spots))],
+    scenes = sweep_scenes(scene_name, spacings, overrides, spots)
+    run_side_by_side([(scene, out / f"d{d:g}") for d, scene in zip(spacings, scenes)],
                      progress=progress)
 
     result = None
     if world.rank == 0:
-        scene = sweep_scenes(scene_name, spacings[:1], overrides, spots)[0]
+        scene = scenes[0]
         t, depth_mm = scene.output_times[-1], scene.depths[0]
         table = {q: [] for q in QUANTITIES}
         profiles = {d: read_csv(out / f"d{d:g}" / "depth_profiles.csv") for d in spacings}

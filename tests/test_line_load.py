@@ -135,28 +135,15 @@ def test_line_load_deflection_changes_little_during_the_hold(line_load):
     assert abs(x[np.argmax(w1)]) < 0.1 and np.max(w1) == pytest.approx(1.0, abs=0.05)
 
 
-class _Stop(Exception):
-    pass
-
-
 def _mid_ramp(tmp_path, t_stop: float):
-    """The `line-load-1pct` scene stepped to the first accepted state at or after `t_stop`,
-    then moved to the next step's time: (stepper, problem) ready for a Newton iteration."""
+    """The `line-load-1pct` scene stepped to `t_stop`, then moved to the next step's time:
+    (stepper, problem) ready for a Newton iteration."""
     from fingertip_dolfinx.runner import Run
 
     scene = load_scene("line-load-1pct", ["protocol.end_time=1.0", "output.times=[1.0]"])
     job = Run(scene, tmp_path, MPI.COMM_WORLD, resume=False, progress=False)
-    record = job.on_step
-
-    def on_step(report):
-        record(report)
-        if report.time >= t_stop:
-            job.problem.set_time(report.time + report.next_dt)
-            raise _Stop
-
-    job.on_step = on_step
-    with pytest.raises(_Stop):
-        job.run()
+    reports = job.stepper.run(scene.history, t_stop)
+    job.problem.set_time(t_stop + reports[-1].next_dt)
     return job.stepper, job.problem
 
 
@@ -168,22 +155,16 @@ def test_jacobian_is_the_residuals_derivative_in_contact(shared_tmp_path):
     missing a term would leave an O(1) error. (The ramp's steps converge linearly, at ~0.3
     per iteration with full steps, because the contact set changes between iterates: the
     README's "Speed" paragraph; this test rules out the other cause.)"""
-    from petsc4py import PETSc
-
     stepper, problem = _mid_ramp(shared_tmp_path, 0.3)
     snes, x = stepper.snes, stepper.nonlinear.x
     dolfinx.fem.petsc.assign(problem.unknowns, x)  # the accepted state, at the new time
-    F, J = x.duplicate(), snes.getJacobian()[0]
+    (F, _), (J, P, _) = snes.getFunction(), snes.getJacobian()
     snes.computeFunction(x, F)
     if stepper.reuse is not None:
         stepper.reuse.start()
-    snes.computeJacobian(x, J, J)
-    ksp = PETSc.KSP().create(x.comm)
-    ksp.setOperators(J)
-    ksp.setType("preonly")
-    ksp.getPC().setType("lu")
-    ksp.getPC().setFactorSolverType("mumps")
-    d = x.duplicate()
+    snes.computeJacobian(x, J, P)
+    ksp, d = snes.getKSP(), x.duplicate()  # the run's own linear solver (MUMPS)
+    ksp.setOperators(J, P)
     ksp.solve(F, d)
     Jd = x.duplicate()
     J.mult(d, Jd)
@@ -203,4 +184,3 @@ def test_jacobian_is_the_residuals_derivative_in_contact(shared_tmp_path):
     print(f"central-difference error of J d: {coarse:.2e} (eps 1e-2), {fine:.2e} (1e-3)")
     assert fine < 1e-5
     assert coarse / fine > 20  # second order: 100; first order (a wrong tangent): <= 10
-    ksp.destroy()
