@@ -3,19 +3,24 @@ the model options, the step control and the outputs. A scene is data only: `run.
 
 A scene comes from a TOML file (built in: `fingertip_dolfinx/data/scenes/`, `line-load`, `1pt`,
 `2pt`; or any path) with `key=value` overrides (`model.subcutaneous="drained"`,
-`indenters.0.centre_x=1.5`: list entries by index), or from parts in Python:
-`Scene(section=..., indenters=[...], history=...)`. Both are validated the same way.
+`indenters.0.centre_x=1.5`: list entries by index; a list given whole replaces the list), or
+from parts in Python: `Scene(section=..., indenters=[...], history=...)`. Both are validated the
+same way. Every key remembers where it came from (the scene file, `--set`, `--config FILE`, a
+Python override), and an error names that source. Relative paths in a scene file are read
+against the scene file's folder.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import re
 import tomllib
+from contextlib import contextmanager
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .datafiles import builtin_dir, find, read_toml
+from .datafiles import builtin_dir, builtin_names, find, read_toml
 from .errors import InputError
 from .geometry import Section, load_section
 from .geometry3d import Fingertip3D, load_fingertip3d, section_dimension
@@ -121,6 +126,9 @@ class Scene:
     #: `[solver] linear`: the linear solver inside Newton, "direct" (MUMPS) or "iterative"
     #: (Krylov with a field-split multigrid preconditioner; linear_solvers.py).
     linear: str = "direct"
+    #: The overrides applied to the scene file (`key=value`, as given): the figures' titles
+    #: say what was changed (`title`).
+    changes: tuple[str, ...] = ()
 
     def __post_init__(self):
         self.indenters = list(self.indenters)
@@ -163,6 +171,16 @@ class Scene:
                              f"{self.section.cylinder_length}) (the cylindrical part, whose "
                              "cross-section is the 2D section).", "pick a z on it.")
 
+    @property
+    def title(self) -> str:
+        """The name and, compactly, the overrides applied ("1pt — indenters=[cylinder r=5],
+        subcutaneous k0=1000"), cut with an ellipsis past TITLE_LENGTH characters: a figure
+        of a changed scene must not pass for the built-in one."""
+        if not self.changes:
+            return self.name
+        title = f"{self.name} — " + ", ".join(_compact(text) for text in self.changes)
+        return title if len(title) <= TITLE_LENGTH else title[:TITLE_LENGTH - 1] + "…"
+
     # The names the run and the studies read.
     @property
     def output_times(self) -> tuple[float, ...]:
@@ -185,6 +203,39 @@ class Scene:
         return self.outputs.field_every
 
 
+#: Longest figure title (characters) before the overrides in it are cut with an ellipsis.
+TITLE_LENGTH = 70
+#: Short names of indenter sizes in titles.
+_ABBREVIATIONS = {"radius": "r", "width": "w", "centre_x": "x", "centre_z": "z"}
+
+
+def _compact(text: str) -> str:
+    """One override for a title: `materials.subcutaneous.permeability.k0=1000` ->
+    `subcutaneous k0=1000`, `indenters=[{file = "cylinder", radius = 5.0}]` ->
+    `indenters=[cylinder r=5]`, `section.mesh.min_size=0.2` -> `mesh min_size=0.2`."""
+    keys, value = parse_override(text)
+    if keys[0] == "indenters" and len(keys) > 1:
+        name = f"indenters[{keys[1]}]" + "".join(f" {k}" for k in keys[2:])
+    elif keys[0] in TABLES and len(keys) > 2:
+        name = f"{keys[1]} {keys[-1]}"
+    else:
+        name = keys[-1]
+    return f"{name}={_short(value)}"
+
+
+def _short(value) -> str:
+    if isinstance(value, Mapping):
+        head = [str(value[k]) for k in ("file", "shape") if k in value][:1]
+        rest = [f"{_ABBREVIATIONS.get(k, k)}={_short(v)}" for k, v in value.items()
+                if k not in ("file", "shape")]
+        return " ".join(head + rest)
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_short(v) for v in value) + "]"
+    if isinstance(value, float):
+        return f"{value:g}"
+    return str(value)
+
+
 # --- reading scene files --------------------------------------------------------------------
 
 
@@ -192,11 +243,26 @@ def scene_path(source: str | Path) -> Path:
     return find("scenes", source, "scene")
 
 
+class Override(str):
+    """A `key=value` override that knows its `source`, the words an error message names it by:
+    `--set key=value`, `--config FILE`, `overrides["model"]["tissue"]` (a Python mapping)."""
+
+    source: str
+
+    def __new__(cls, text: str, source: str | None = None):
+        self = super().__new__(cls, text)
+        self.source = source or getattr(text, "source", None) or f'override "{text}"'
+        return self
+
+    def __reduce__(self):  # pickled as itself (sweeps send scenes' overrides between ranks)
+        return Override, (str(self), self.source)
+
+
 def parse_override(text: str) -> tuple[list[str], object]:
     """`a.b.c=value` -> (["a", "b", "c"], value), the value read as TOML (else a string)."""
     key, sep, raw = text.partition("=")
     if not sep or not key.strip():
-        raise InputError(f"--set {text}", "is not of the form key=value.",
+        raise InputError(getattr(text, "source", f"--set {text}"), "is not of the form key=value.",
                          "write e.g. --set model.subcutaneous=drained.")
     try:
         value = tomllib.loads(f"v = {raw}")["v"]
@@ -205,101 +271,251 @@ def parse_override(text: str) -> tuple[list[str], object]:
     return key.strip().split("."), value
 
 
-def apply_override(data: dict, text: str) -> None:
+def apply_override(data: dict, text: str) -> tuple:
     """Set one `key=value` in the scene's tables; list entries are addressed by index
-    (`indenters.0.centre_x=1.5`)."""
+    (`indenters.0.centre_x=1.5`), a list given whole replaces the list. Returns the key path
+    (list indices as integers)."""
+    where = Override(text).source
     keys, value = parse_override(text)
-    node = data
+    node, path = data, []
     for depth, k in enumerate(keys):
-        last = depth == len(keys) - 1
         if isinstance(node, list):
             if not (k.isdigit() and int(k) < len(node)):
-                raise InputError(f"--set {text}", f"{'.'.join(keys[:depth]) or 'it'} is a list "
-                                 f"of {len(node)}; {k!r} is not an index of it.",
+                raise InputError(where, f"{'.'.join(keys[:depth]) or 'it'} is a list of "
+                                 f"{len(node)}; {k!r} is not an index of it.",
                                  f"use an index from 0 to {len(node) - 1}.")
             k = int(k)
         elif not isinstance(node, dict):
-            raise InputError(f"--set {text}", f"{'.'.join(keys[:depth])!r} is a value, not a "
-                             "table.", "check the key.")
-        if last:
+            raise InputError(where, f"{'.'.join(keys[:depth])!r} is a value, not a table.",
+                             "check the key.")
+        path.append(k)
+        if depth == len(keys) - 1:
             node[k] = value
         else:
             node = node.setdefault(k, {}) if isinstance(node, dict) else node[k]
+    return tuple(path)
 
 
-def overrides_as_text(overrides: Mapping | Sequence[str]) -> list[str]:
-    """`key=value` strings from a nested mapping ({"model": {"tissue": "continuum"}}), so that
-    Python callers can pass tables; strings pass through."""
+def overrides_as_text(overrides: Mapping | Sequence[str], source: str | None = None
+                      ) -> list[Override]:
+    """`key=value` overrides from a nested mapping ({"model": {"tissue": "continuum"}}: tables
+    are merged key by key, any other value, a list of tables too, replaces the scene's), so
+    that Python callers and --config files take the path of --set; strings pass through.
+    Each remembers its source: `source` if given, else `overrides["model"]["tissue"]`."""
     if not isinstance(overrides, Mapping):
-        return list(overrides)
+        return [Override(text, source) for text in overrides]
 
-    def flatten(prefix: str, node: Mapping):
+    def flatten(prefix: tuple, node: Mapping):
         for key, value in node.items():
             if isinstance(value, Mapping):
-                yield from flatten(f"{prefix}{key}.", value)
+                yield from flatten((*prefix, key), value)
             else:
-                yield f"{prefix}{key}={toml_value(value)}"
+                label = source or "overrides" + "".join(f'["{k}"]' for k in (*prefix, key))
+                yield Override(f"{'.'.join((*prefix, key))}={toml_value(value)}", label)
 
-    return list(flatten("", overrides))
+    return list(flatten((), overrides))
 
 
 def toml_value(value) -> str:
-    """A Python value written as a TOML value."""
+    """A Python value written as a TOML value (a mapping as an inline table)."""
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, str):
         return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, Mapping):
+        return "{" + ", ".join(f"{toml_value(str(k))} = {toml_value(v)}"
+                               for k, v in value.items()) + "}"
     if isinstance(value, list | tuple):
         return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    if isinstance(value, Path):
+        return toml_value(str(value))
     return repr(float(value)) if isinstance(value, float) else repr(value)
+
+
+# --- relative paths ----------------------------------------------------------------------------
+
+#: The keys of a scene that name files: (key path, "*" for every list entry; True if the value
+#: is always a path, False if it may also be a built-in's name).
+PATH_KEYS = ((("section", "file"), False), (("section", "mesh", "size_map"), True),
+             (("indenters", "*", "file"), False), (("materials", "set"), False),
+             (("output", "receptors"), False))
+
+
+def anchor_paths(data: dict, folder: Path) -> dict:
+    """`data` (a scene file's or a --config file's tables) with its relative file paths made
+    relative to `folder`, the file's own folder, so that the file means the same from any
+    working directory. Built-in names (`cylinder`) stay names. In place; returns `data`."""
+    for keys, always in PATH_KEYS:
+        for parent, key in _holders(data, keys):
+            value = parent[key]
+            if isinstance(value, str) and value and not Path(value).is_absolute():
+                candidate = folder / value
+                if always or Path(value).suffix == ".toml" or candidate.is_file():
+                    parent[key] = str(candidate)
+    return data
+
+
+def _holders(node, keys: tuple):
+    """(table, key) of every value at `keys` in `node` ("*": each entry of a list)."""
+    *head, last = keys
+    nodes = [node]
+    for k in head:
+        nodes = [n for n in nodes if isinstance(n, Mapping) and k in n] if k != "*" else nodes
+        nodes = ([e for n in nodes if isinstance(n, list) for e in n] if k == "*"
+                 else [n[k] for n in nodes])
+    return [(n, last) for n in nodes if isinstance(n, dict) and last in n]
+
+
+# --- loading, and naming the source of a bad value ------------------------------------------
 
 
 def load_scene(source: str | Path, overrides: Mapping | Sequence[str] = (),
                spacing: float | None = None) -> Scene:
     """Read a scene file (built-in name or path), apply overrides (`key=value` strings or a
-    nested mapping of tables), and validate everything."""
+    nested mapping of tables), and validate everything. An error names where the bad value
+    came from: the scene file, `--set`, `--config FILE` or the Python override."""
     path = scene_path(source)
-    data = read_toml(path)
-    for text in overrides_as_text(overrides):
-        apply_override(data, text)
+    data = anchor_paths(read_toml(path), path.parent)
+    sources = {leaf: str(path) for leaf in _leaves(data)}
+    changes = overrides_as_text(overrides)
     if spacing is not None:
-        data["spacing"] = spacing
-    return scene_from_dict(data, where=str(path))
+        changes.append(Override(f"spacing={toml_value(spacing)}", f"spacing {spacing:g}"))
+    for text in changes:
+        keys = apply_override(data, text)
+        _replace_sources(sources, keys, _leaves(_at(data, keys)), text.source)
+    return scene_from_dict(data, where=str(path), sources=sources, changes=tuple(changes))
 
 
-def scene_from_dict(data: dict, where: str = "scene") -> Scene:
-    """A scene from the tables of a scene file."""
+def _leaves(node, prefix: tuple = ()) -> list[tuple]:
+    """The key paths of the values in `node` (into tables, and lists of tables by index)."""
+    if isinstance(node, Mapping):
+        return [leaf for k, v in node.items() for leaf in _leaves(v, (*prefix, k))]
+    if isinstance(node, list) and node and all(isinstance(v, Mapping) for v in node):
+        return [leaf for i, v in enumerate(node) for leaf in _leaves(v, (*prefix, i))]
+    return [prefix]
+
+
+def _at(data, keys: tuple):
+    for k in keys:
+        data = data[k]
+    return data
+
+
+def _replace_sources(sources: dict, keys: tuple, leaves: list[tuple], source: str) -> None:
+    """An override at `keys` replaces whatever was below it, and names its own source."""
+    for old in [p for p in sources if p[:len(keys)] == keys]:
+        del sources[old]
+    for leaf in leaves:
+        sources[(*keys, *leaf)] = source
+
+
+class _Blame:
+    """Rewrites an `InputError` raised while a table is built so that its `where` names the
+    source of the value at fault (sources: key path -> source). The value is found by the keys
+    the message names: the source whose key path shares the longest beginning with them (the
+    latest-applied on a tie). A value no key of the scene set came from a file the scene names
+    (a materials set, a section, an indenter file), which the message already names."""
+
+    def __init__(self, sources: dict, file: str, name: str):
+        self.sources, self.file, self.name = sources, file, name
+        self.order = {s: i for i, s in enumerate(dict.fromkeys(sources.values()))}
+
+    @contextmanager
+    def __call__(self, table: str | None):
+        try:
+            yield
+        except InputError as error:
+            raise self.rewritten(error, table) from None
+
+    def rewritten(self, error: InputError, table: str | None) -> InputError:
+        rest = self._key_part(error.where)
+        words = [w for w in re.split(r"[.:\[\],\s]+", re.sub(r"\([^)]*\)", "", rest)) if w]
+        if words and words[0] in TABLES:
+            table, words = words[0], words[1:]
+            rest = rest.removeprefix(f"{table}: ")  # `model: model.tissue` says it twice
+            words = words[1:] if words[:1] == [table] else words
+        elif table is not None and rest:
+            rest = f"{table}.{rest}"
+        elif table is not None:
+            rest = table
+        source = self._source(table, words)
+        if source is None:
+            return error
+        return InputError(f"{source}: {rest}", error.problem, error.fix)
+
+    def _key_part(self, where: str) -> str:
+        """`where` without the file or scene name it starts with."""
+        rest = re.sub(r"^.*?\.toml(?::\s+|,\s*key\s+|$)", "", where, count=1)
+        return rest.removeprefix(f"{self.name}: ")
+
+    def _source(self, table: str | None, words: list[str]) -> str | None:
+        best, score = None, (-1, -1)
+        for keys, source in self.sources.items():
+            if table is None or keys[0] != table:
+                continue
+            inner = [str(k) for k in keys[1:]]
+            common = next((i for i, (a, b) in enumerate(zip(inner, words)) if a != b),
+                          min(len(inner), len(words)))
+            if common or not inner or not words:
+                if (common, self.order[source]) > score:
+                    best, score = source, (common, self.order[source])
+        return best
+
+
+def scene_from_dict(data: dict, where: str = "scene", sources: dict | None = None,
+                    changes: tuple[str, ...] = ()) -> Scene:
+    """A scene from the tables of a scene file. With `sources` (key path -> where the value
+    came from, `load_scene` makes it), errors name the source of the bad value."""
+    name = str(data.get("name", Path(where).stem))
+    context = _Blame(sources or {}, where, name)
     check_keys(where, data, TABLES, what="table")
-    section_data = dict(data.get("section", {}))
-    source = section_data.pop("file", "male-index")
-    loader = load_fingertip3d if section_dimension(source) == 3 else load_section
-    section = loader(source, overrides=section_data)
-    indenters = _indenters(data, where)
-    return Scene(
-        name=str(data.get("name", Path(where).stem)),
-        description=str(data.get("description", "")),
-        section=section,
-        indenters=indenters,
-        history=history_from_dict(data.get("protocol", {}), where=f"{where}: protocol"),
-        materials=_materials(data.get("materials", {}), f"{where}: materials"),
-        model=_options(ModelOptions, data.get("model", {}), f"{where}: model"),
-        steps=_options(StepOptions, data.get("steps", {}), f"{where}: steps"),
-        petsc_options=_petsc_options(data.get("solver", {}), f"{where}: solver"),
-        linear=data.get("solver", {}).get("linear", "direct"),
-        outputs=_options(Outputs, data.get("output", {}), f"{where}: output"),
-        accuracy=_options(Accuracy, data.get("accuracy", {}), f"{where}: accuracy"),
-        harmonic=(_options(HarmonicOptions, data["harmonic"], f"{where}: harmonic")
-                  if "harmonic" in data else None),
-    )
+    with context("section"):
+        section_data = dict(data.get("section", {}))
+        source = section_data.pop("file", "male-index")
+        _named_file("sections", source, "section", f"{where}: section.file")
+        loader = load_fingertip3d if section_dimension(source) == 3 else load_section
+        section = loader(source, overrides=section_data)
+    with context("indenters"):
+        indenters = _indenters(data, where)
+    with context("protocol"):
+        history = history_from_dict(data.get("protocol", {}), where=f"{where}: protocol")
+    with context("materials"):
+        materials = _materials(data.get("materials", {}), f"{where}: materials")
+    tables = {"harmonic": None}
+    for table, cls in (("model", ModelOptions), ("steps", StepOptions), ("output", Outputs),
+                       ("accuracy", Accuracy), ("harmonic", HarmonicOptions)):
+        if table in data or table != "harmonic":  # no [harmonic]: no frequency response
+            with context(table):
+                tables[table] = _options(cls, data.get(table, {}), f"{where}: {table}")
+    with context("solver"):
+        petsc_options = _petsc_options(data.get("solver", {}), f"{where}: solver")
+    with context(None):
+        return Scene(
+            name=name, description=str(data.get("description", "")), section=section,
+            indenters=indenters, history=history, materials=materials, model=tables["model"],
+            steps=tables["steps"], petsc_options=petsc_options,
+            linear=data.get("solver", {}).get("linear", "direct"), outputs=tables["output"],
+            accuracy=tables["accuracy"],
+            harmonic=tables["harmonic"], changes=changes)
 
 
 def _indenters(data: dict, where: str) -> list[Indenter]:
-    indenters = []
-    for i, table in enumerate(data.get("indenters", [])):
+    indenters, tables = [], data.get("indenters", [])
+    if not isinstance(tables, list):
+        raise InputError(f"{where}: indenters", f"must be a list of tables, got {tables!r}.",
+                         'write indenters = [{file = "cylinder", radius = 5.0}].')
+    for i, table in enumerate(tables):
+        if not isinstance(table, Mapping):
+            raise InputError(f"{where}: indenters[{i}]", f"must be a table, got {table!r}.",
+                             'write {file = "cylinder", radius = 5.0}: a file and sizes.')
         table = dict(table)
         base = table.pop("file", None)
         if base is not None:
-            builtin = load_indenter(base)
+            try:
+                builtin = load_indenter(base)
+            except InputError as error:
+                raise InputError(f"{where}: indenters[{i}].file", error.problem,
+                                 error.fix) from None
             table = dataclasses.asdict(builtin) | {"shape": builtin.shape} | table
         indenters.append(make_indenter(table, where=f"{where}: indenters[{i}]"))
     if "spacing" in data:
@@ -340,7 +556,20 @@ def _materials(data: Mapping, where: str) -> Tissues:
     if not isinstance(data, Mapping):
         raise InputError(where, f"must be a table, got {data!r}.", "write [materials].")
     data = dict(data)
-    return load_materials(data.pop("set", DEFAULT_SET), overrides=data)
+    source = data.pop("set", DEFAULT_SET)
+    _named_file("materials", source, "materials set", f"{where}.set")
+    return load_materials(source, overrides=data)
+
+
+def _named_file(kind: str, source, what: str, where: str) -> None:
+    """A file a scene names must exist; the error names the scene's key, not only the file."""
+    if not isinstance(source, str | Path):
+        raise InputError(where, f"must be a file name, got {source!r}.",
+                         f"give a built-in {what}'s name or a path to a .toml file.")
+    try:
+        find(kind, source, what)
+    except InputError as error:
+        raise InputError(where, f"{source}: {error.problem}", error.fix) from None
 
 
 def _options(cls, data: Mapping, where: str):
