@@ -39,7 +39,7 @@ __version__ = "0.1.0"
 _API = {
     # scenes: experiments as data, and running them
     "Scene": "scene", "Outputs": "scene", "load_scene": "scene",
-    "run": "runner", "run_scene": "runner",
+    "run": "runner", "run_scene": "runner", "check": "checks",
     "Result": "result", "load_result": "result",
     "adapt": "adaptivity", "AdaptOptions": "adaptivity",
     # materials as data

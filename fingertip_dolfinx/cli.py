@@ -14,7 +14,11 @@ import json
 import sys
 from pathlib import Path
 
+from .datafiles import builtin_names
 from .errors import FingertipError, InputError
+
+#: The built-in scenes, as the help lists them (the package's data/scenes/).
+SCENES = ", ".join(builtin_names("scenes"))
 
 
 def _add_mesh(subparsers) -> None:
@@ -46,26 +50,37 @@ def _add_mesh(subparsers) -> None:
     p.set_defaults(handler=_run_mesh)
 
 
-def _add_scene_options(p) -> None:
+def _add_scene_options(p, check: bool = False) -> None:
     p.add_argument("--config", type=Path, metavar="FILE",
-                   help="TOML file of overrides, with the tables of a scene file, merged over it")
+                   help="TOML file of overrides, with the tables of a scene file, merged over it "
+                   "(a list, as [[indenters]], replaces the scene's; relative paths in it are "
+                   "read from its folder)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override one scene key, e.g. --set model.subcutaneous=drained "
-                   "--set section.mesh.min_size=0.05 (repeatable; values read as TOML)")
-    p.add_argument("--out", required=True, type=Path, metavar="DIR", help="output directory")
+                   "--set section.mesh.min_size=0.05 (repeatable; values read as TOML; "
+                   "relative paths from the working directory)")
+    p.add_argument("--out", required=not check, type=Path, metavar="DIR",
+                   help="output directory" + (" (with --check: checked if given)" if check
+                                              else ""))
     p.add_argument("--quiet", action="store_true", help="no progress display")
+    if check:
+        p.add_argument("--check", action="store_true",
+                       help="check the input without running: every table, the files it "
+                       "names, --out writable, a 2D mesh built and the indenters' reach, in "
+                       "seconds; exit 0 if fine, 2 with the message if not")
 
 
 def _add_run(subparsers) -> None:
     p = subparsers.add_parser(
         "run",
-        help="run a scene (line-load, 1pt, 2pt or a scene TOML) and write its results",
+        help="run a scene (built in, or a scene TOML file) and write its results",
         description="Run one experiment and write DIR/summary.json, history.csv, "
         "surface_profile.csv, depth_profiles.csv, fields for ParaView (*.bp) and PNG figures. "
-        "Results are written step by step; --resume continues an interrupted run.",
+        "Results are written step by step; --resume continues an interrupted run. "
+        f"Built-in scenes: {SCENES}.",
     )
     p.add_argument("scene", metavar="SCENE",
-                   help="built-in scene (line-load, 1pt, 2pt) or a scene TOML file")
+                   help=f"built-in scene ({SCENES}) or a scene TOML file")
     p.add_argument("--spacing", type=float, metavar="D",
                    help="centre spacing (mm) of the two bars of a 2pt scene")
     p.add_argument("--resume", action="store_true",
@@ -93,8 +108,8 @@ def _add_run(subparsers) -> None:
     p.add_argument("--state", choices=("held", "relaxed"), default=None,
                    help="with the frequency route: the pressed state, held at the end of the "
                    "pre-indentation (default) or relaxed to the long-term equilibrium")
-    _add_scene_options(p)
-    p.set_defaults(handler=_run_scene)
+    _add_scene_options(p, check=True)
+    p.set_defaults(handler=_run_or_check)
 
 
 def _add_sweep(subparsers) -> None:
@@ -110,7 +125,8 @@ def _add_sweep(subparsers) -> None:
         "and DIR/normalized_variation.png. Under mpiexec the runs go side by side, one group "
         "of ranks each.",
     )
-    p.add_argument("scene", metavar="SCENE", help="a built-in scene or a scene TOML file")
+    p.add_argument("scene", metavar="SCENE",
+                   help=f"a built-in scene ({SCENES}) or a scene TOML file")
     p.add_argument("--spacings", type=float, nargs="+", metavar="D",
                    help="centre spacings in mm of a 2pt scene, e.g. 1.5 2 3 4")
     p.add_argument("--spots", action="store_true",
@@ -126,8 +142,8 @@ def _add_sweep(subparsers) -> None:
                    help="values of --param (read as TOML: 1e-2, [0.1, 0.2])")
     p.add_argument("--factors", type=float, nargs="+", metavar="F",
                    help="multiply the scene's value of --param by each factor")
-    _add_scene_options(p)
-    p.set_defaults(handler=_run_sweep)
+    _add_scene_options(p, check=True)
+    p.set_defaults(handler=_sweep_or_check)
 
 
 def _add_study(subparsers) -> None:
@@ -202,16 +218,74 @@ FIDELITY_COARSE = ("section.mesh.min_size=0.2", "section.mesh.max_size=1.0",
 
 
 def _scene_overrides(args) -> list[str]:
-    """--config FILE's keys as KEY=VALUE overrides, followed by the --set ones."""
+    """--config FILE's keys as KEY=VALUE overrides (its relative paths read from its folder),
+    followed by the --set ones; each names its source (`--config FILE`, `--set KEY=VALUE`) in
+    an error message."""
     from .datafiles import read_toml
-    from .scene import overrides_as_text
+    from .scene import Override, anchor_paths, overrides_as_text
 
     overrides = []
     if args.config is not None:
+        where = f"--config {args.config}"
         if not args.config.is_file():
-            raise InputError(f"--config {args.config}", "no such file.")
-        overrides += overrides_as_text(read_toml(args.config))
-    return overrides + list(args.overrides)
+            raise InputError(where, "no such file.",
+                             "give a TOML file with the tables of a scene file.")
+        try:
+            data = read_toml(args.config)
+        except InputError as error:
+            raise InputError(where, error.problem, error.fix) from None
+        overrides += overrides_as_text(anchor_paths(data, args.config.parent), source=where)
+    return overrides + [Override(text, f"--set {text}") for text in args.overrides]
+
+
+def _run_or_check(args) -> int:
+    """`fingertip run`, or with --check the scene checked without running (checks.py)."""
+    if args.check:
+        if args.tol is not None and not 0 < args.tol < 1:
+            raise InputError(f"--tol {args.tol}", "must be a relative error in (0, 1).",
+                             "give e.g. --tol 0.01 for 1 %.")
+        return _print_check(args.scene, args, _scene_overrides(args), [args.spacing])
+    if args.out is None:
+        raise InputError("--out", "is required: the folder the results go to.",
+                             "give --out DIR (or --check to check the input only).")
+    return _run_scene(args)
+
+
+def _sweep_or_check(args) -> int:
+    """`fingertip sweep`, or with --check each of its scenes loaded and the first checked."""
+    from .scene import Override, load_scene
+
+    if not args.check:
+        if args.out is None:
+            raise InputError("--out", "is required: the folder the results go to.",
+                             "give --out DIR (or --check to check the input only).")
+        return _run_sweep(args)
+    overrides, spacings = _scene_overrides(args), args.spacings or [None]
+    if args.param and args.values:
+        for text in args.values:
+            load_scene(args.scene, [*overrides, Override(f"{args.param}={text}",
+                                                         f"--param {args.param} --values {text}")])
+    elif args.param and args.factors:
+        from .scene import scene_record, toml_value
+        from .studies.parameters import _lookup, _scaled
+
+        base = _lookup(scene_record(load_scene(args.scene, overrides)), args.param)
+        for factor in args.factors:
+            value = toml_value(_scaled(base, factor, args.param))
+            load_scene(args.scene, [*overrides, Override(f"{args.param}={value}",
+                                                         f"--param {args.param} --factors "
+                                                         f"{factor:g}")])
+    for spacing in spacings[1:]:
+        load_scene(args.scene, overrides, spacing=spacing)
+    return _print_check(args.scene, args, overrides, spacings[:1])
+
+
+def _print_check(scene: str, args, overrides: list[str], spacings: list) -> int:
+    from .checks import check
+
+    for line in check(scene, args.out, overrides, spacing=spacings[0]):
+        _rank0_print(line)
+    return 0
 
 
 def _run_scene(args) -> int:

@@ -409,6 +409,17 @@ def _replace_sources(sources: dict, keys: tuple, leaves: list[tuple], source: st
         sources[(*keys, *leaf)] = source
 
 
+def blamed(scene: Scene, error: InputError) -> InputError:
+    """`error`, found after loading (e.g. an indenter that never reaches the skin), with its
+    `where` naming the override it comes from, if one of the scene's `changes` set it."""
+    sources = {}
+    for text in scene.changes:
+        keys, value = parse_override(text)
+        keys = tuple(int(k) if k.isdigit() else k for k in keys)
+        _replace_sources(sources, keys, _leaves(value), Override(text).source)
+    return _Blame(sources, "", scene.name).rewritten(error, None)
+
+
 class _Blame:
     """Rewrites an `InputError` raised while a table is built so that its `where` names the
     source of the value at fault (sources: key path -> source). The value is found by the keys
