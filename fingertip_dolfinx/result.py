@@ -80,10 +80,16 @@ class Result:
         if quantity not in self.depth:
             raise InputError(f"quantity {quantity!r}", "is not a column of depth_profiles.csv.",
                              f"use one of {', '.join(self.depth)}.")
-        rows = np.isclose(self.depth["time_s"], t) & np.isclose(self.depth["depth_mm"], depth)
+        at_depth = np.isclose(self.depth["depth_mm"], depth)
+        if not at_depth.any():
+            written = sorted(float(d) for d in np.unique(self.depth["depth_mm"]))
+            raise InputError(f"depth {depth} mm", "was not written by this run.",
+                             f"use a written depth, {written} mm (or run again with "
+                             f"output.depths = [{depth}]).")
+        rows = at_depth & np.isclose(self.depth["time_s"], t)
         if not rows.any():
-            raise InputError(f"depth {depth} mm, t = {t} s", "was not an output of this run.",
-                             f"output times {self.output_times}.")
+            raise InputError(f"t = {t} s", "was not an output time of this run.",
+                             f"use an output time, {self.output_times} s.")
         return self.depth["x_mm"][rows], self.depth[quantity][rows]
 
     def receptors(self) -> dict[str, np.ndarray]:
