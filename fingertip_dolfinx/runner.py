@@ -241,7 +241,7 @@ class Run:
         if self.comm.rank == 0:
             np.savez_compressed(self.out / f"fields_t{t:g}s.npz", time=t, **arrays)
         if self.scene.outputs.pictures:
-            field_pictures(self.problem, self.derived, self.out, t, self.scene.name)
+            field_pictures(self.problem, self.derived, self.out, t, self.scene.title)
 
     def _save_checkpoint(self, report) -> None:
         self.checkpoint.save(report.time, report.next_dt, self.step_count,
@@ -276,9 +276,9 @@ class Run:
                                   wall=wall, output_times=self.scene.output_times,
                                   mirror_factor=self.problem.mirror_factor)
             if self.scene.outputs.pictures:
-                _figures(self.out, self.scene.name)
+                _figures(self.out, self.scene.title)
                 if self.three_d:
-                    _figures_3d(self.out, self.scene.name)
+                    _figures_3d(self.out, self.scene.title)
         summary = self.comm.bcast(summary, root=0)
         write_json(self.out / "summary.json", summary, self.comm)
         peak = summary.get("peak_force_N", summary.get("peak_force_N_per_mm"))

@@ -225,7 +225,7 @@ def _compact(text: str) -> str:
 
 def _short(value) -> str:
     if isinstance(value, Mapping):
-        head = [str(value[k]) for k in ("file", "shape") if k in value][:1]
+        head = [Path(str(value[k])).stem for k in ("file", "shape") if k in value][:1]
         rest = [f"{_ABBREVIATIONS.get(k, k)}={_short(v)}" for k, v in value.items()
                 if k not in ("file", "shape")]
         return " ".join(head + rest)
@@ -441,7 +441,9 @@ class _Blame:
     def rewritten(self, error: InputError, table: str | None) -> InputError:
         rest = self._key_part(error.where)
         words = [w for w in re.split(r"[.:\[\],\s]+", re.sub(r"\([^)]*\)", "", rest)) if w]
-        if words and words[0] in TABLES:
+        if words[:1] == ["scene"]:  # the scene's own keys, the tables
+            rest, words = rest.removeprefix("scene.").removeprefix("scene"), words[1:]
+        elif words and words[0] in TABLES:
             table, words = words[0], words[1:]
             rest = rest.removeprefix(f"{table}: ")  # `model: model.tissue` says it twice
             words = words[1:] if words[:1] == [table] else words
@@ -461,10 +463,11 @@ class _Blame:
 
     def _source(self, table: str | None, words: list[str]) -> str | None:
         best, score = None, (-1, -1)
+        head = () if table is None else (table,)
         for keys, source in self.sources.items():
-            if table is None or keys[0] != table:
+            if keys[:len(head)] != head:
                 continue
-            inner = [str(k) for k in keys[1:]]
+            inner = [str(k) for k in keys[len(head):]]
             common = next((i for i, (a, b) in enumerate(zip(inner, words)) if a != b),
                           min(len(inner), len(words)))
             if common or not inner or not words:
@@ -479,7 +482,8 @@ def scene_from_dict(data: dict, where: str = "scene", sources: dict | None = Non
     came from, `load_scene` makes it), errors name the source of the bad value."""
     name = str(data.get("name", Path(where).stem))
     context = _Blame(sources or {}, where, name)
-    check_keys(where, data, TABLES, what="table")
+    with context(None):
+        check_keys(f"{where}: scene", data, TABLES, what="table")
     with context("section"):
         section_data = dict(data.get("section", {}))
         source = section_data.pop("file", "male-index")
@@ -525,8 +529,8 @@ def _indenters(data: dict, where: str) -> list[Indenter]:
             try:
                 builtin = load_indenter(base)
             except InputError as error:
-                raise InputError(f"{where}: indenters[{i}].file", error.problem,
-                                 error.fix) from None
+                raise InputError(f"{where}: indenters[{i}].file",  # and the file's own key
+                                 f"{error.where}: {error.problem}", error.fix) from None
             table = dataclasses.asdict(builtin) | {"shape": builtin.shape} | table
         indenters.append(make_indenter(table, where=f"{where}: indenters[{i}]"))
     if "spacing" in data:
