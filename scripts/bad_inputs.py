@@ -23,6 +23,8 @@ import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
+#: The package's folder, shortened in the table (built-in files are named by their path).
+PACKAGE = str(Path(__file__).resolve().parents[1] / "fingertip_dolfinx")
 START, END = "<!-- bad-inputs:start -->", "<!-- bad-inputs:end -->"
 
 #: Files the cases name, written into a fresh folder `{d}` (paths relative to it).
@@ -228,7 +230,8 @@ def run_all(folder: Path, cases=CASES) -> list[tuple[Case, int, str, bool]]:
             code, message = run_case(case, folder)
             names = case.names.replace("{d}", str(folder))
             ok = code == case.code and (names in message if case.code else "error" not in message)
-            rows.append((case, code, message.replace(str(folder), "{d}"), ok))
+            message = message.replace(str(folder), "{d}").replace(PACKAGE, "…/fingertip_dolfinx")
+            rows.append((case, code, message, ok))
         return rows
     finally:
         os.chdir(here)
