@@ -11,6 +11,7 @@ The Python API, in the order a study uses it::
 
     scene = ft.load_scene("line-load", {"materials": {"subcutaneous": {"permeability":
                                                                        {"k0": 1e-2}}}})
+    ft.check(scene)                                # validated, files found, mesh built
     result = ft.run(scene, "results/k0-1e-2")
     result.time, result.force                      # the history, as arrays
     x, sed = result.depth_profile("sed_MPa", depth=0.75, t=1.0)

@@ -67,8 +67,8 @@ def writable(out: Path, label: str = "--out") -> str:
         with tempfile.TemporaryFile(dir=folder):
             pass
     except OSError as error:
-        raise InputError(f"{label} {out}", f"no file can be written in {folder} ({error.strerror}).",
-                         "give a folder you can write to.") from None
+        raise InputError(f"{label} {out}", f"no file can be written in {folder} "
+                         f"({error.strerror}).", "give a folder you can write to.") from None
     return f"{out}: writable" + ("" if out.exists() else f" (to be made in {folder})")
 
 

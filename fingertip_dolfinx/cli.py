@@ -244,11 +244,16 @@ def _run_or_check(args) -> int:
         if args.tol is not None and not 0 < args.tol < 1:
             raise InputError(f"--tol {args.tol}", "must be a relative error in (0, 1).",
                              "give e.g. --tol 0.01 for 1 %.")
-        return _print_check(args.scene, args, _scene_overrides(args), [args.spacing])
+        return _print_check(args, _scene_overrides(args), args.spacing)
+    _need_out(args)
+    return _run_scene(args)
+
+
+def _need_out(args) -> None:
+    """--out is optional for --check only."""
     if args.out is None:
         raise InputError("--out", "is required: the folder the results go to.",
-                             "give --out DIR (or --check to check the input only).")
-    return _run_scene(args)
+                         "give --out DIR (or --check to check the input only).")
 
 
 def _sweep_or_check(args) -> int:
@@ -256,9 +261,7 @@ def _sweep_or_check(args) -> int:
     from .scene import Override, load_scene
 
     if not args.check:
-        if args.out is None:
-            raise InputError("--out", "is required: the folder the results go to.",
-                             "give --out DIR (or --check to check the input only).")
+        _need_out(args)
         return _run_sweep(args)
     overrides, spacings = _scene_overrides(args), args.spacings or [None]
     if args.param and args.values:
@@ -277,13 +280,14 @@ def _sweep_or_check(args) -> int:
                                                          f"{factor:g}")])
     for spacing in spacings[1:]:
         load_scene(args.scene, overrides, spacing=spacing)
-    return _print_check(args.scene, args, overrides, spacings[:1])
+    return _print_check(args, overrides, spacings[0])
 
 
-def _print_check(scene: str, args, overrides: list[str], spacings: list) -> int:
+def _print_check(args, overrides: list[str], spacing: float | None) -> int:
+    """Check args.scene with `overrides` (checks.py) and print the report."""
     from .checks import check
 
-    for line in check(scene, args.out, overrides, spacing=spacings[0]):
+    for line in check(args.scene, args.out, overrides, spacing=spacing):
         _rank0_print(line)
     return 0
 

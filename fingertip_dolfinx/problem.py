@@ -412,14 +412,13 @@ class FingertipProblem:
         tolerance = max(TIP_PENETRATION_TOLERANCE * abs(self.indentation(self.time)), 1e-3)
         if excess > tolerance and not self._tip_warned:
             self._tip_warned = True  # once per run
+            tips = ", ".join(f"{o.indenter.centre_x:g}" for o in self.obstacles)
             warnings.warn(
                 f"at t = {self.time:.4g} s the indenter tip is {depth * 1e3:.3g} µm inside the "
                 f"body, {excess * 1e3:.3g} µm deeper than the surface nodes (tolerance "
                 f"{tolerance * 1e3:.3g} µm): it slips between surface elements "
                 f"{max(self.tip_mesh_sizes):.3g} mm long. Fix: refine the mesh under the tip: "
-                f"section.mesh.tips = [{', '.join(f'{o.indenter.centre_x:g}' for o in
-                                                  self.obstacles)}], tip_size below the tip "
-                "radius.",
+                f"section.mesh.tips = [{tips}], tip_size below the tip radius.",
                 TipResolutionWarning, stacklevel=3,
             )
 

@@ -15,12 +15,12 @@ from __future__ import annotations
 import dataclasses
 import re
 import tomllib
-from contextlib import contextmanager
 from collections.abc import Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .datafiles import builtin_dir, builtin_names, find, read_toml
+from .datafiles import builtin_dir, find, read_toml
 from .errors import InputError
 from .geometry import Section, load_section
 from .geometry3d import Fingertip3D, load_fingertip3d, section_dimension

@@ -241,10 +241,10 @@ def table(rows) -> str:
     """The Markdown table of the cases."""
     out = ["| mistake | input | exit | message (first line) |", "| --- | --- | --- | --- |"]
     for case, code, message, ok in rows:
-        given = case.python or "fingertip " + " ".join(case.argv)
+        given = (case.python or "fingertip " + " ".join(case.argv)).replace("|", "\\|")
         cell = message.replace("|", "\\|")
         out.append(f"| {case.mistake}{'' if ok else ' **(not as expected)**'} | "
-                   f"`{given.replace('|', '\\|')}` | {code} | {cell} |")
+                   f"`{given}` | {code} | {cell} |")
     return "\n".join(out) + "\n"
 
 

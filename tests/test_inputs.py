@@ -66,7 +66,8 @@ def test_the_file_a_bad_value_is_in_is_named(tmp_path):
         load_scene(scene)
     soft = tmp_path / "soft.toml"
     soft.write_text(find("materials", "wu2004", "").read_text().replace("E = 170.0", "E = -1.0"))
-    scene.write_text('[[indenters]]\nfile = "bar"\n' + protocol + '[materials]\nset = "soft.toml"\n')
+    scene.write_text('[[indenters]]\nfile = "bar"\n' + protocol
+                     + '[materials]\nset = "soft.toml"\n')
     with pytest.raises(InputError, match=rf"^{soft}: nail"):
         load_scene(scene)
     (tmp_path / "sharp.toml").write_text('shape = "cylinder"\nradius = -1.0\n')
