@@ -178,7 +178,8 @@ class Scene:
         of a changed scene must not pass for the built-in one."""
         if not self.changes:
             return self.name
-        title = f"{self.name} — " + ", ".join(_compact(text) for text in self.changes)
+        changes = sorted(self.changes, key=_numerical)  # the physics first, the mesh after
+        title = f"{self.name} — " + ", ".join(_compact(text) for text in changes)
         return title if len(title) <= TITLE_LENGTH else title[:TITLE_LENGTH - 1] + "…"
 
     # The names the run and the studies read.
@@ -203,10 +204,17 @@ class Scene:
         return self.outputs.field_every
 
 
-#: Longest figure title (characters) before the overrides in it are cut with an ellipsis.
-TITLE_LENGTH = 70
+#: Longest figure title (characters) before the overrides in it are cut with an ellipsis:
+#: what the narrowest figure (force_history.png) shows whole at the default font.
+TITLE_LENGTH = 60
+#: Tables of numerical settings: a title names them after the physical ones.
+_NUMERICAL = ("section.mesh", "steps", "solver", "output", "accuracy")
 #: Short names of indenter sizes in titles.
 _ABBREVIATIONS = {"radius": "r", "width": "w", "centre_x": "x", "centre_z": "z"}
+
+
+def _numerical(text: str) -> bool:
+    return text.startswith(_NUMERICAL)
 
 
 def _compact(text: str) -> str:

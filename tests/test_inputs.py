@@ -120,6 +120,8 @@ def test_the_title_says_what_was_changed():
         "subcutaneous": {"permeability": {"k0": 1000}}}})
     assert scene.title == "1pt — indenters=[cylinder r=5], subcutaneous k0=1000"
     assert load_scene("1pt").title == "1pt"
+    numerics_last = load_scene("1pt", ["section.mesh.min_size=0.2", "protocol.depth=0.5"])
+    assert numerics_last.title == "1pt — depth=0.5, mesh min_size=0.2"
     long = load_scene("1pt", [f"section.mesh.min_size={0.1 + i * 1e-3}" for i in range(9)])
     assert len(long.title) == TITLE_LENGTH and long.title.endswith("…")
 
