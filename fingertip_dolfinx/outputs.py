@@ -4,7 +4,7 @@ Everything is written as the run goes (rank 0 writes the tables; every rank its 
 so an interrupted run loses nothing and `--resume` continues from the last checkpoint. Every
 file is written whole or not at all (`whole`: a temporary name, then a rename), so a crash or a
 kill never leaves half a file; CSV rows are appended and flushed one by one. The checkpoint
-keeps the scene's record (`checkpoint/scene.json`), and `resume_conflict` says what a resumed
+keeps the scene's record (`checkpoint/scene.json`), and `check_resume` says what a resumed
 scene may not change. The figures are drawn elsewhere (`figures.py`, `fieldplots.py`).
 """
 
@@ -182,7 +182,7 @@ class CheckpointState:
 class Checkpoint:
     """One .npz per rank in `out/checkpoint/`, replaced atomically after every step, and the
     scene's record `scene.json` beside them, written when the run starts: a resume is
-    checked against it (`resume_conflict`), so the files never mix two experiments."""
+    checked against it (`check_resume`), so the files never mix two experiments."""
 
     def __init__(self, out: Path, comm: MPI.Comm):
         self.out, self.comm = Path(out), comm

@@ -136,7 +136,10 @@ class Interrupts:
     the signal's name); the run checks after each step (`Run.on_step`). A KeyboardInterrupt in
     the middle of a PETSc solve or of a file being written would leave a traceback, PETSc's
     own errors and half files. The previous handlers are put back on exit. Outside the main
-    thread (where Python cannot handle signals) it does nothing."""
+    thread (where Python cannot handle signals) it does nothing.
+
+    `arm()` installs the handlers again: gmsh resets SIGTERM to its default (the process
+    ends at once) behind Python's back when it meshes, so the run re-arms after building."""
 
     SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
@@ -148,6 +151,10 @@ class Interrupts:
         if threading.current_thread() is threading.main_thread():
             self._previous = {s: signal.signal(s, self._note) for s in self.SIGNALS}
         return self
+
+    def arm(self) -> None:
+        for s in self._previous:
+            signal.signal(s, self._note)
 
     def _note(self, number, frame) -> None:
         self.received = self.received or signal.Signals(number).name
@@ -188,13 +195,8 @@ class Run:
         receptors = load_receptors(scene.outputs.receptors) if scene.outputs.receptors else None
         self.out = prepare_directory(out, comm)
         self.checkpoint = Checkpoint(self.out, comm)
-        if resume:  # before anything is built or written: the same experiment?
-            record, t = self.checkpoint.stored()
-            check_resume(record, scene_record(scene), t, self.out)
-        self.fm = (build_mesh3d if self.three_d else build_mesh)(scene.section, comm)
-        if not resume:
-            with whole_files(self.out, "mesh", comm) as folder:
-                write_xdmf(self.fm, folder / "mesh.xdmf")
+        record = self._own_checkpoint(resume)
+        self.fm = self._mesh(resume)
         self.problem = FingertipProblem(self.fm, scene.indenters, scene.history,
                                         scene.materials, scene.model)
         check_reach(self.problem, scene)
@@ -202,8 +204,7 @@ class Run:
         steps = scene.steps
         if resume:
             steps = self._resume()
-        # The record the checkpoints belong to (a resume's: its later end or output times).
-        (self.checkpoint.remember if resume else self.checkpoint.start)(scene_record(scene))
+            self.checkpoint.remember(record)  # the resumed scene's: a later end, more times
         self.time = self.start_time
         self.stepper = TimeStepper(self.problem, steps, scene.petsc_options,
                                    linear=scene.linear)
@@ -221,6 +222,28 @@ class Run:
         self._bar = None
 
     # --- set-up ----------------------------------------------------------------------------
+    def _own_checkpoint(self, resume: bool) -> dict:
+        """The scene's record. A resume is checked against the run's record before anything
+        is built or written (the same experiment?); a fresh run's record replaces an earlier
+        run's checkpoints (nothing to resume until its first step)."""
+        record = scene_record(self.scene)
+        if resume:
+            stored, t = self.checkpoint.stored()
+            check_resume(stored, record, t, self.out)
+        else:
+            self.checkpoint.start(record)
+        return record
+
+    def _mesh(self, resume: bool):
+        """The mesh, written whole to mesh.xdmf (+ .h5) by a fresh run."""
+        fm = (build_mesh3d if self.three_d else build_mesh)(self.scene.section, self.comm)
+        if self.interrupts is not None:
+            self.interrupts.arm()  # gmsh has reset SIGTERM to its default
+        if not resume:
+            with whole_files(self.out, "mesh", self.comm) as folder:
+                write_xdmf(fm, folder / "mesh.xdmf")
+        return fm
+
     def _open_logs(self, after) -> None:
         """The CSV files and their samplers: the section's profiles in 2D; in 3D, across and
         along the finger through the load, and the force per unit length f(z)."""
@@ -276,6 +299,8 @@ class Run:
                    TextColumn("t = {task.completed:.3g} / {task.total:g} s"),
                    TimeElapsedColumn(), TextColumn("{task.fields[status]}"))
         show = self.progress and self.comm.rank == 0
+        if self.interrupts is not None:
+            self.interrupts.arm()  # after the mesh (gmsh) and the solvers are built
         with Progress(*columns, disable=not show, transient=False) as bar:
             self._bar = (bar, bar.add_task(scene.name, total=end, completed=self.start_time,
                                            status=""))
@@ -314,7 +339,10 @@ class Run:
     def _stop_if_asked(self, t: float) -> None:
         """After a step, with everything written: stop if a signal came to any rank (all
         ranks stop at the same step: mpiexec may deliver the signal at different moments)."""
-        asked = self.interrupts is not None and self.interrupts.received is not None
+        if self.interrupts is None:
+            return
+        self.interrupts.arm()
+        asked = self.interrupts.received is not None
         if self.comm.allreduce(asked, op=MPI.LOR) and t < self.scene.history.end_time - 1e-12:
             if self.interrupts.received is None:  # another rank's signal
                 self.interrupts.received = "a signal to another rank"
