@@ -116,8 +116,8 @@ def run_scene(scene: Scene, out: str | Path, *, resume: bool = False, progress: 
 
 def completed_summary(scene: Scene, out: Path, comm: MPI.Comm) -> dict | None:
     """The summary of the run in `out` if resuming it with `scene` has nothing left to do (it
-    completed, to the scene's end time); None if it has. A scene that would mix two
-    experiments is refused (`check_resume`)."""
+    completed, to the scene's end time); None if there is more to compute. A scene that would
+    mix two experiments is refused (`check_resume`)."""
     record, t = Checkpoint(out, comm).stored()
     check_resume(record, scene_record(scene), t, out)
     path = out / "summary.json"
@@ -136,7 +136,8 @@ class Interrupts:
     the signal's name); the run checks after each step (`Run.on_step`). A KeyboardInterrupt in
     the middle of a PETSc solve or of a file being written would leave a traceback, PETSc's
     own errors and half files. The previous handlers are put back on exit. Outside the main
-    thread (where Python cannot handle signals) it does nothing.
+    thread (where Python cannot handle signals) it does nothing; a signal that is ignored
+    (nohup, a background job) stays ignored.
 
     `arm()` installs the handlers again: gmsh resets SIGTERM to its default (the process
     ends at once) behind Python's back when it meshes, so the run re-arms after building."""
@@ -149,7 +150,8 @@ class Interrupts:
 
     def __enter__(self) -> Self:
         if threading.current_thread() is threading.main_thread():
-            self._previous = {s: signal.signal(s, self._note) for s in self.SIGNALS}
+            self._previous = {s: signal.signal(s, self._note) for s in self.SIGNALS
+                              if signal.getsignal(s) is not signal.SIG_IGN}
         return self
 
     def arm(self) -> None:
