@@ -108,9 +108,10 @@ class CsvLog:
             return
         rows = []
         if resume_after is not None and path.exists():
-            # Keep the rows up to the checkpoint; later ones are recomputed.
+            # Keep the whole rows up to the checkpoint; later ones are recomputed.
             with path.open() as f:
-                rows = [r for r in csv.DictReader(f) if float(r["time_s"]) <= resume_after + 1e-12]
+                rows = [r for r in csv.DictReader(f) if None not in r.values()
+                        and float(r["time_s"]) <= resume_after + 1e-12]
         with whole(path) as tmp, tmp.open("w", newline="") as f:
             writer = csv.DictWriter(f, fieldnames=self.columns)
             writer.writeheader()
