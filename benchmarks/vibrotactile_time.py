@@ -12,7 +12,7 @@ displacement (positive: the force leads, as a damped system's does).
     .venv/bin/mpiexec -n 2 .venv/bin/python benchmarks/vibrotactile_time.py
 
 Outputs that cost time per step and do not enter the numbers (fields for ParaView, pictures)
-are off unless `--set output.field_every=1` etc. asks for them.
+are off unless `--set output.fields=every-step --set output.field_every=1` etc. asks for them.
 """
 
 import argparse

@@ -63,7 +63,7 @@ _API = {
     "afferent_responses": "receptors",
     # errors
     "FingertipError": "errors", "InputError": "errors", "ConvergenceError": "errors",
-    "CompactionError": "errors",
+    "CompactionError": "errors", "RunInterrupted": "errors",
 }
 __all__ = sorted(_API)
 

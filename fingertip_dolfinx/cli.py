@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 
 from .datafiles import builtin_names
-from .errors import FingertipError, InputError
+from .errors import FingertipError, InputError, RunInterrupted
 
 #: The built-in scenes, as the help lists them (the package's data/scenes/).
 SCENES = ", ".join(builtin_names("scenes"))
@@ -293,7 +293,6 @@ def _print_check(args, overrides: list[str], spacing: float | None) -> int:
 
 
 def _run_scene(args) -> int:
-    from .runner import run_scene
     from .scene import load_scene
 
     overrides = _scene_overrides(args)
@@ -310,7 +309,25 @@ def _run_scene(args) -> int:
         mesh_tol = scene.accuracy.tol
     if mesh_tol is not None or args.max_levels is not None:
         return _run_adaptive(args, scene, mesh_tol)
-    summary = run_scene(scene, args.out, resume=args.resume, progress=not args.quiet)
+    return _run_once(args, scene)
+
+
+def _run_once(args, scene) -> int:
+    """One run of `scene` into --out (or its --resume); a signal stops it with exit 130."""
+    from mpi4py import MPI
+
+    from .runner import completed_summary, run_scene
+
+    if args.resume and completed_summary(scene, args.out, MPI.COMM_WORLD) is not None:
+        _rank0_print(f"{scene.name}: the run in {args.out} is already complete (to t = "
+                     f"{scene.history.end_time:g} s); nothing computed, nothing rewritten.")
+        return 0
+    try:
+        summary = run_scene(scene, args.out, resume=args.resume, progress=not args.quiet)
+    except RunInterrupted as stop:
+        _rank0_print(f"interrupted at t = {stop.time:.6g} s; continue with: "
+                     f"{_resume_command(args.argv, MPI.COMM_WORLD.size)}")
+        return 130
     peak = (f"{summary['peak_force_N']:.4g} N" + (" (half model: x2 for the whole finger)"
                                                    if summary["mirror_factor"] == 2 else "")
             if "peak_force_N" in summary else f"{summary['peak_force_N_per_mm']:.4g} N/mm")
@@ -320,6 +337,15 @@ def _run_scene(args) -> int:
         f"{1e3 * summary['max_penetration_mm']:.3g} µm; results in {args.out}"
     )
     return 0
+
+
+def _resume_command(argv: list[str], ranks: int) -> str:
+    """The command line that continues this run: the same one, with --resume."""
+    import shlex
+
+    launch = f"mpiexec -n {ranks} " if ranks > 1 else ""
+    resume = [] if "--resume" in argv else ["--resume"]
+    return f"{launch}fingertip {shlex.join([*argv, *resume])}"
 
 
 def _run_frequency_route(args, scene) -> int:
@@ -562,11 +588,15 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as e:  # --help (0) or a malformed command line (2, message printed)
         return int(e.code or 0)
+    args.argv = list(sys.argv[1:] if argv is None else argv)  # for the line that resumes
     try:
         return args.handler(args)
     except FingertipError as e:
         _rank0_print(f"fingertip {args.command}: error: {e}")
         return 2 if isinstance(e, InputError) else 1
+    except RunInterrupted as e:  # a run inside a sweep or study: stopped at a step boundary
+        _rank0_print(f"fingertip {args.command}: {e}; its files are written")
+        return 130
 
 
 def _rank0_print(message: str) -> None:

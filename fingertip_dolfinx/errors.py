@@ -30,3 +30,16 @@ class CompactionError(ConvergenceError):
 
 class MaterialInstabilityError(FingertipError, RuntimeError):
     """A hyperelastic state left the region where the Drucker condition holds."""
+
+
+class RunInterrupted(KeyboardInterrupt):
+    """A run stopped by SIGINT (Ctrl-C) or SIGTERM at a step boundary, after writing its files
+    and summary.json (`"status": "interrupted"`); `--resume` continues it.
+
+    A KeyboardInterrupt, so that Python code keeps Ctrl-C's meaning (it is not caught by
+    `except Exception`); `time` is the last time reached (s), `signal` the signal's name,
+    `summary` the summary written."""
+
+    def __init__(self, time: float, signal: str, summary: dict):
+        self.time, self.signal, self.summary = time, signal, summary
+        super().__init__(f"interrupted by {signal} at t = {time:.6g} s")

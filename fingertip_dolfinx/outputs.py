@@ -1,8 +1,11 @@
 """The files of a run: CSV tables written row by row, the summary, checkpoints, field arrays.
 
 Everything is written as the run goes (rank 0 writes the tables; every rank its checkpoint),
-so an interrupted run loses nothing and `--resume` continues from the last checkpoint. The
-figures are drawn elsewhere (`figures.py`, `fieldplots.py`) from these files.
+so an interrupted run loses nothing and `--resume` continues from the last checkpoint. Every
+file is written whole or not at all (`whole`: a temporary name, then a rename), so a crash or a
+kill never leaves half a file; CSV rows are appended and flushed one by one. The checkpoint
+keeps the scene's record (`checkpoint/scene.json`), and `check_resume` says what a resumed
+scene may not change. The figures are drawn elsewhere (`figures.py`, `fieldplots.py`).
 """
 
 from __future__ import annotations
@@ -11,7 +14,9 @@ import csv
 import json
 import math
 import os
-from collections.abc import Sequence
+import shutil
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,6 +24,7 @@ import numpy as np
 from mpi4py import MPI
 
 from .errors import InputError
+from .loading import history_from_dict
 
 #: The columns of the result files (stable names: other tools read them).
 HISTORY_COLUMNS = ("time_s", "indenter_displacement_mm", "force_N_per_mm", "newton_iterations",
@@ -37,6 +43,40 @@ DEPTH_COLUMNS = ("x_mm", "depth_mm", "time_s", "u1_mm", "u2_mm", "e11", "e22", "
                  "e_min", "sed_MPa", "p_MPa")
 
 
+@contextmanager
+def whole(path: Path) -> Iterator[Path]:
+    """A temporary name beside `path` (same folder, same suffix, so writers that go by the
+    suffix still work) to write the file to; it becomes `path` by one rename once written, so
+    a reader, a resumed run or a crash never meets half a file. Nothing is renamed where
+    nothing was written (the ranks that do not write); on an error the half file is removed."""
+    path = Path(path)
+    tmp = path.with_name(f"{path.stem}.tmp{path.suffix}")
+    try:
+        yield tmp
+        if tmp.exists():
+            os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+@contextmanager
+def whole_files(out: Path, name: str, comm: MPI.Comm) -> Iterator[Path]:
+    """A temporary folder `out/<name>.tmp/` for writers that name their own files (several at
+    once, as XDMF's .xdmf + .h5): once every rank is done, rank 0 moves each file into `out`
+    (one rename each) and removes the folder."""
+    tmp = Path(out) / f"{name}.tmp"
+    if comm.rank == 0:
+        tmp.mkdir(exist_ok=True)
+    comm.barrier()
+    try:
+        yield tmp
+        comm.barrier()
+        if comm.rank == 0:
+            for f in sorted(tmp.iterdir()):
+                os.replace(f, Path(out) / f.name)
+    finally:
+        if comm.rank == 0:
+            shutil.rmtree(tmp, ignore_errors=True)
 
 
 def prepare_directory(out: Path, comm: MPI.Comm) -> Path:
@@ -58,7 +98,8 @@ def prepare_directory(out: Path, comm: MPI.Comm) -> Path:
 
 
 class CsvLog:
-    """A CSV file written row by row on rank 0 (flushed, so a crash loses nothing)."""
+    """A CSV file written row by row on rank 0 (flushed, so a crash loses nothing). The header
+    and, on a resume, the rows kept are written whole (`whole`); rows are then appended."""
 
     def __init__(self, path: Path, columns: Sequence[str], comm: MPI.Comm, resume_after=None):
         self.comm, self.columns, self.path = comm, tuple(columns), path
@@ -67,15 +108,16 @@ class CsvLog:
             return
         rows = []
         if resume_after is not None and path.exists():
-            # Keep the rows up to the checkpoint; later ones are recomputed.
+            # Keep the whole rows up to the checkpoint; later ones are recomputed.
             with path.open() as f:
-                rows = [r for r in csv.DictReader(f) if float(r["time_s"]) <= resume_after + 1e-12]
-        self._file = path.open("w", newline="")
+                rows = [r for r in csv.DictReader(f) if None not in r.values()
+                        and float(r["time_s"]) <= resume_after + 1e-12]
+        with whole(path) as tmp, tmp.open("w", newline="") as f:
+            writer = csv.DictWriter(f, fieldnames=self.columns)
+            writer.writeheader()
+            writer.writerows(rows)
+        self._file = path.open("a", newline="")
         self._writer = csv.DictWriter(self._file, fieldnames=self.columns)
-        self._writer.writeheader()
-        for r in rows:
-            self._writer.writerow(r)
-        self._file.flush()
 
     def write(self, rows: Sequence[dict]) -> None:
         if self._file is None:
@@ -107,10 +149,16 @@ def read_csv(path: Path) -> dict[str, np.ndarray]:
 
 
 def write_json(path: Path, data: dict, comm: MPI.Comm) -> None:
+    """`data` as JSON into `path`, written whole (rank 0)."""
     if comm.rank == 0:
-        tmp = path.with_suffix(".json.tmp")
-        tmp.write_text(json.dumps(data, indent=2, default=_jsonable) + "\n")
-        tmp.replace(path)  # atomic: readers never see half a file
+        with whole(path) as tmp:
+            tmp.write_text(json.dumps(data, indent=2, default=_jsonable) + "\n")
+
+
+def save_npz(path: Path, **arrays) -> None:
+    """Arrays into a compressed .npz, written whole (the caller's rank only)."""
+    with whole(path) as tmp, tmp.open("wb") as f:
+        np.savez_compressed(f, **arrays)
 
 
 def _jsonable(value):
@@ -133,20 +181,54 @@ class CheckpointState:
 
 
 class Checkpoint:
-    """One .npz per rank in `out/checkpoint/`, replaced atomically after every step."""
+    """One .npz per rank in `out/checkpoint/`, replaced atomically after every step, and the
+    scene's record `scene.json` beside them, written when the run starts: a resume is
+    checked against it (`check_resume`), so the files never mix two experiments."""
 
     def __init__(self, out: Path, comm: MPI.Comm):
         self.out, self.comm = Path(out), comm
-        self.path = self.out / "checkpoint" / f"rank{comm.rank}.npz"
+        self.folder = self.out / "checkpoint"
+        self.path = self.folder / f"rank{comm.rank}.npz"
+
+    def start(self, record: dict) -> None:
+        """A fresh run: the checkpoints of an earlier run in this folder go, the record of
+        this one is written (a kill before the first step leaves nothing to resume)."""
+        if self.comm.rank == 0:
+            for old in self.folder.glob("rank*.npz"):
+                old.unlink()
+            shutil.rmtree(self.folder / "fields", ignore_errors=True)
+        self.remember(record)
+
+    def remember(self, record: dict) -> None:
+        """The record the checkpoints belong to (after a resume: the resumed scene's)."""
+        write_json(self.folder / "scene.json", record, self.comm)
+        self.comm.barrier()
+
+    def stored(self) -> tuple[dict, float]:
+        """(the record of the run in `out`, the time of its last checkpoint); every rank."""
+        where = f"--resume {self.out}"
+        found = None
+        if self.comm.rank == 0:
+            record, state = self.folder / "scene.json", self.folder / "rank0.npz"
+            if record.exists() and state.exists():
+                with np.load(state) as data:
+                    found = json.loads(record.read_text()), float(data["time"])
+            else:
+                found = state if not state.exists() else record
+        found = self.comm.bcast(found, root=0)
+        if isinstance(found, Path):
+            older = " (a run older than the record kept)" if found.name == "scene.json" else ""
+            raise InputError(where, f"there is no checkpoint to resume from ({found} is "
+                             f"missing{older}).", "run without --resume to start afresh.")
+        return found
 
     def save(self, time: float, dt: float, steps: int, state: dict[str, np.ndarray],
              previous: tuple[float, list[np.ndarray]]) -> None:
-        tmp = self.path.with_name(self.path.stem + ".tmp.npz")
         previous_time, arrays = previous
-        np.savez(tmp, time=time, dt=dt, steps=steps, ranks=self.comm.size,
-                 previous_time=previous_time, **state,
-                 **{f"previous_{i}": a for i, a in enumerate(arrays)})
-        tmp.replace(self.path)
+        with whole(self.path) as tmp, tmp.open("wb") as f:
+            np.savez(f, time=time, dt=dt, steps=steps, ranks=self.comm.size,
+                     previous_time=previous_time, **state,
+                     **{f"previous_{i}": a for i, a in enumerate(arrays)})
 
     def load(self, state: dict[str, np.ndarray], n_unknowns: int) -> CheckpointState:
         """Fill the arrays of `state` in place; a checkpoint of another run is refused."""
@@ -169,19 +251,129 @@ class Checkpoint:
                                previous)
 
 
-class FieldWriters:
-    """Fields over time for ParaView: one VTX (ADIOS2) file per field, `<name><suffix>.bp`,
-    which keeps P2 displacements exact (XDMF would need P1)."""
+#: Keys a resumed scene may change freely: what is drawn and how often fields are written,
+#: never what is computed. The protocol and the output times follow `check_resume`'s rules.
+FREE_ON_RESUME = ("description", "output.pictures", "output.fields", "output.field_every")
 
-    def __init__(self, out: Path, comm: MPI.Comm, fields: dict, suffix: str = ""):
+
+def check_resume(old: dict, new: dict, t: float, out: Path) -> None:
+    """Refuse to continue the run in `out`, checkpointed at `t` with the scene record `old`,
+    with a scene (record `new`) that would mix two experiments: every key must be the same but
+    FREE_ON_RESUME, the protocol where it leaves the load d(t) on [0, t] and its kinks before t
+    as they were (a later end time, more cycles, points after t), and the output times after t
+    (the ones up to t are written: they must stay)."""
+    old, new = (json.loads(json.dumps(r, default=_jsonable)) for r in (old, new))
+    for key, a, b in _differences(old, new):
+        if key in FREE_ON_RESUME or (key.startswith("protocol.")
+                                     and _same_load(old["protocol"], new["protocol"], t)):
+            continue
+        fix = f"start a new --out, or resume without --set {key}=... (or with {key} = {a!r})"
+        if key == "output.times":
+            written = [x for x in a if x <= t + 1e-12]
+            if written == [x for x in b if x <= t + 1e-12]:
+                continue
+            fix = (f"keep the output times already written, {written}, in output.times (times "
+                   f"after {t:g} s may be added), or start a new --out")
+        raise InputError(f"--resume {out}: {key}", f"the run there was computed to t = {t:g} s "
+                         f"with {key} = {_shown(a)}; this scene has {_shown(b)}. Resuming would "
+                         f"mix two experiments (the record: {out}/checkpoint/scene.json).", fix)
+
+
+def _shown(value) -> str:
+    return "(absent)" if value is _ABSENT else json.dumps(value)
+
+
+_ABSENT = object()
+
+
+def _differences(old: dict, new: dict) -> list[tuple[str, object, object]]:
+    """(key path, old value, new value) of every leaf that differs; lists of numbers are
+    leaves, lists of tables (indenters) are entered by index."""
+    a, b = _leaves(old), _leaves(new)
+    return [(k, a.get(k, _ABSENT), b.get(k, _ABSENT)) for k in dict.fromkeys([*a, *b])
+            if a.get(k, _ABSENT) != b.get(k, _ABSENT)]
+
+
+def _leaves(node, prefix: str = "") -> dict:
+    if isinstance(node, dict):
+        items = node.items()
+    elif isinstance(node, list) and any(isinstance(v, dict | list) for v in node):
+        items = enumerate(node)
+    else:
+        return {prefix.rstrip("."): node}
+    out = {}
+    for key, value in items:
+        out |= _leaves(value, f"{prefix}{key}.")
+    return out
+
+
+def _same_load(old: dict, new: dict, t: float) -> bool:
+    """Do two protocols (records) prescribe the same d(s) for s <= t, with the same kinks
+    before t (where the steps landed)? Then what was computed up to t is what the new one
+    would compute."""
+    a, b = (history_from_dict(dict(p)) for p in (old, new))
+    kinks = [[m for m in h.breakpoints if m < t - 1e-12] for h in (a, b)]
+    if len(kinks[0]) != len(kinks[1]) or not np.allclose(*kinks, rtol=0, atol=1e-12):
+        return False
+    s = np.union1d(np.linspace(0.0, t, 1001), [*kinks[0], t])
+    da, db = np.array([a(x) for x in s]), np.array([b(x) for x in s])
+    return bool(np.allclose(da, db, rtol=1e-12, atol=1e-15))
+
+
+class FieldWriters:
+    """Fields over time for ParaView: one VTX (ADIOS2) file per field, `<name>.bp`, which keeps
+    P2 displacements exact (XDMF would need P1).
+
+    DOLFINx's VTX writer cannot append to a series, so each time written is also kept in the
+    checkpoint (`checkpoint/fields/rank<r>_<k>.npz`: the functions' own arrays on this rank).
+    A resumed run (`resume_after`: the checkpoint's time) writes the series again from them up
+    to its checkpoint and continues it: one time line per field, as if never interrupted."""
+
+    def __init__(self, out: Path, comm: MPI.Comm, fields: dict, resume_after: float | None = None):
         from dolfinx import io
 
-        self.writers = [io.VTXWriter(comm, Path(out) / f"{name}{suffix}.bp", [f], engine="BP4")
+        self.fields, self.rank = fields, comm.rank
+        self.store = Path(out) / "checkpoint" / "fields"
+        self.store.mkdir(parents=True, exist_ok=True)
+        kept = self._kept(resume_after)
+        self.writers = [io.VTXWriter(comm, Path(out) / f"{name}.bp", [f], engine="BP4")
                         for name, f in fields.items()]
+        self.count = 0
+        self._replay(kept)
+
+    def _kept(self, resume_after: float | None) -> list[Path]:
+        """This rank's stored times up to the checkpoint (none for a fresh run); the later
+        ones (written after the last checkpoint) are removed: they are computed again."""
+        kept = []
+        for path in sorted(self.store.glob(f"rank{self.rank}_*.npz")):
+            if resume_after is not None:
+                with np.load(path) as data:
+                    if float(data["time"]) <= resume_after + 1e-12:
+                        kept.append(path)
+                        continue
+            path.unlink()
+        return kept
+
+    def _replay(self, kept: list[Path]) -> None:
+        """Write the stored times again, then put the functions' arrays back."""
+        now = {name: f.x.array.copy() for name, f in self.fields.items()}
+        for path in kept:
+            with np.load(path) as data:
+                for name, f in self.fields.items():
+                    f.x.array[:] = data[name]
+                for writer in self.writers:
+                    writer.write(float(data["time"]))
+            self.count += 1
+        for name, f in self.fields.items():
+            f.x.array[:] = now[name]
 
     def write(self, t: float) -> None:
         for writer in self.writers:
             writer.write(t)
+        path = self.store / f"rank{self.rank}_{self.count:06d}.npz"
+        with whole(path) as tmp, tmp.open("wb") as f:
+            np.savez(f, time=t, **{name: g.x.array for name, g in self.fields.items()})
+        self.count += 1
 
     def close(self) -> None:
         for writer in self.writers:
@@ -189,9 +381,13 @@ class FieldWriters:
 
 
 def run_summary(out: Path, record: dict, mesh_report, dofs: int, ranks: int, *, converged: bool,
-                failure: str | None, wall: float, output_times, mirror_factor: int = 1) -> dict:
+                failure: str | None, wall: float, output_times, mirror_factor: int = 1,
+                status: str | None = None) -> dict:
     """summary.json's content, from the run's own history.csv and the scene's record.
-    3D runs' forces are in N; a half model's are its half (`mirror_factor` 2: the whole's)."""
+    3D runs' forces are in N; a half model's are its half (`mirror_factor` 2: the whole's).
+    `status`: "completed", "failed" (a step could not be solved) or "interrupted" (SIGINT or
+    SIGTERM: stopped at a step boundary, `end_time_s` is the last time reached); `converged`
+    is true for a completed run only."""
     import platform
     import time
 
@@ -223,6 +419,7 @@ def run_summary(out: Path, record: dict, mesh_report, dofs: int, ranks: int, *, 
         # Krylov iterations (= Newton iterations with the direct solver; 0 in older runs).
         "krylov_iterations": int(np.nansum(h.get("krylov_iterations", [0]))),
         "wall_time_s": wall,
+        "status": status or ("completed" if converged else "failed"),
         "converged": converged,
         "failure": failure,
         "end_time_s": float(times[-1]) if len(times) else 0.0,

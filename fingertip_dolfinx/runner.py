@@ -1,24 +1,34 @@
 """One run of a scene: build the mesh and the problem, step it, write everything as it goes.
 
-Per accepted step: a row of history.csv, the fields for ParaView (VTX, every `field_every`
-steps and at output times) and a checkpoint (one .npz per rank) from which `--resume`
-continues. At output times: the pulp-surface deflection, the depth profiles, the fields as
-arrays (`fields_t<t>s.npz`) and their pictures. At the end (or at a failure): summary.json and
-the figures. `run_scene` returns a `Result` (result.py) that holds all of it as arrays.
-With `output.receptors`, every step also adds the receptor sites' rows to receptors.csv.
+Per accepted step: a row of history.csv, a checkpoint (one .npz per rank) from which
+`--resume` continues, and with `output.fields = "every-step"` the fields for ParaView (VTX,
+every `field_every` steps). At output times: the fields for ParaView, the pulp-surface
+deflection, the depth profiles, the fields as arrays (`fields_t<t>s.npz`) and their pictures.
+At the end (or at a failure, or an interruption): summary.json and the figures. `run`
+returns a `Result` (result.py) that holds all of it as arrays. With `output.receptors`, every
+step also adds the receptor sites' rows to receptors.csv.
+
+A resume is checked against the scene record kept with the checkpoint (`check_resume`).
+SIGINT (Ctrl-C) and SIGTERM stop a run at the next step boundary, all ranks at the same one:
+its files are closed, summary.json says `"status": "interrupted"`, and `RunInterrupted` (a
+KeyboardInterrupt) is raised; the previous signal handlers are back in place when a run returns.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import json
+import signal
+import threading
 import time
 import warnings
 from pathlib import Path
+from typing import Self
 
 import numpy as np
 from mpi4py import MPI
 
-from .errors import ConvergenceError, InputError
+from .errors import ConvergenceError, InputError, RunInterrupted
 from .figures import (
     plot_depth_profiles,
     plot_force_history,
@@ -39,9 +49,12 @@ from .outputs import (
     Checkpoint,
     CsvLog,
     FieldWriters,
+    check_resume,
     prepare_directory,
     read_csv,
     run_summary,
+    save_npz,
+    whole_files,
     write_json,
 )
 from .pictures import field_pictures
@@ -62,7 +75,9 @@ def run(scene: Scene, out: str | Path, *, resume: bool = False, progress: bool =
     """Run `scene`, writing into `out` as it goes, and return its results as arrays.
 
     A failed step (after all cuts) raises `ConvergenceError` once everything up to the last
-    good step is written (summary.json says `"converged": false` and why).
+    good step is written (summary.json says `"status": "failed"` and why). SIGINT or SIGTERM
+    stops the run at the next step boundary and raises `RunInterrupted` (a KeyboardInterrupt)
+    once everything is written (`"status": "interrupted"`); `resume=True` continues it.
     """
     run_scene(scene, out, resume=resume, progress=progress, comm=comm)
     return Result(Path(out))
@@ -70,20 +85,85 @@ def run(scene: Scene, out: str | Path, *, resume: bool = False, progress: bool =
 
 def run_scene(scene: Scene, out: str | Path, *, resume: bool = False, progress: bool = True,
               comm: MPI.Comm | None = None) -> dict:
-    """`run`, returning the summary (summary.json's content) instead of a Result."""
+    """`run`, returning the summary (summary.json's content) instead of a Result. Resuming a
+    completed run of the same scene computes and writes nothing: it returns its summary."""
     comm = comm or MPI.COMM_WORLD
-    job = Run(scene, Path(out), comm, resume=resume, progress=progress)
+    if resume:
+        done = completed_summary(scene, Path(out), comm)
+        if done is not None:
+            return done
     started = time.perf_counter()
-    failed = None
-    try:
-        job.run()
-    except ConvergenceError as error:  # CompactionError too: its type reaches the caller
-        failed = error
-    summary = job.finish(failed is None, None if failed is None else str(failed),
-                         time.perf_counter() - started)
+    failed, status = None, "completed"
+    with Interrupts() as interrupts:
+        job = Run(scene, Path(out), comm, resume=resume, progress=progress,
+                  interrupts=interrupts)
+        try:
+            job.run()
+        except ConvergenceError as error:  # CompactionError too: its type reaches the caller
+            failed, status = error, "failed"
+        except _Stop:
+            status = "interrupted"
+        why = (str(failed) if failed is not None else None if status == "completed" else
+               f"interrupted by {interrupts.received} at t = {job.time:.6g} s")
+        summary = job.finish(status == "completed", why, time.perf_counter() - started,
+                             status=status)
     if failed is not None:
         raise failed
+    if status == "interrupted":
+        raise RunInterrupted(job.time, interrupts.received, summary)
     return summary
+
+
+def completed_summary(scene: Scene, out: Path, comm: MPI.Comm) -> dict | None:
+    """The summary of the run in `out` if resuming it with `scene` has nothing left to do (it
+    completed, to the scene's end time); None if there is more to compute. A scene that would
+    mix two experiments is refused (`check_resume`)."""
+    record, t = Checkpoint(out, comm).stored()
+    check_resume(record, scene_record(scene), t, out)
+    path = out / "summary.json"
+    if t < scene.history.end_time - 1e-12 or not path.exists():
+        return None
+    summary = json.loads(path.read_text())
+    return summary if summary.get("status", "completed") == "completed" else None
+
+
+class _Stop(Exception):
+    """Raised after a step once every rank knows that a signal asked to stop."""
+
+
+class Interrupts:
+    """SIGINT and SIGTERM, while a run is in progress, only note that they came (`received`:
+    the signal's name); the run checks after each step (`Run.on_step`). A KeyboardInterrupt in
+    the middle of a PETSc solve or of a file being written would leave a traceback, PETSc's
+    own errors and half files. The previous handlers are put back on exit. Outside the main
+    thread (where Python cannot handle signals) it does nothing; a signal that is ignored
+    (nohup, a background job) stays ignored.
+
+    `arm()` installs the handlers again: gmsh resets SIGTERM to its default (the process
+    ends at once) behind Python's back when it meshes, so the run re-arms after building."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self):
+        self.received: str | None = None
+        self._previous = {}
+
+    def __enter__(self) -> Self:
+        if threading.current_thread() is threading.main_thread():
+            self._previous = {s: signal.signal(s, self._note) for s in self.SIGNALS
+                              if signal.getsignal(s) is not signal.SIG_IGN}
+        return self
+
+    def arm(self) -> None:
+        for s in self._previous:
+            signal.signal(s, self._note)
+
+    def _note(self, number, frame) -> None:
+        self.received = self.received or signal.Signals(number).name
+
+    def __exit__(self, *exc) -> None:
+        for s, handler in self._previous.items():
+            signal.signal(s, handler)
 
 
 def run_side_by_side(jobs: list[tuple[Scene, Path]], progress: bool = True) -> None:
@@ -106,8 +186,9 @@ class Run:
     """Build, step, resume: one scene run into the directory `out`."""
 
     def __init__(self, scene: Scene, out: Path, comm: MPI.Comm, *, resume: bool,
-                 progress: bool):
+                 progress: bool, interrupts: Interrupts | None = None):
         self.scene, self.comm, self.progress = scene, comm, progress
+        self.interrupts = interrupts
         self.three_d = isinstance(scene.section, Fingertip3D)
         if self.three_d and scene.outputs.receptors:
             raise InputError(f"{scene.name}: output.receptors", "receptor sites are placed on "
@@ -115,17 +196,18 @@ class Run:
                              "leave output.receptors out of a 3D scene.")
         receptors = load_receptors(scene.outputs.receptors) if scene.outputs.receptors else None
         self.out = prepare_directory(out, comm)
-        self.fm = (build_mesh3d if self.three_d else build_mesh)(scene.section, comm)
-        if not resume:
-            write_xdmf(self.fm, self.out / "mesh.xdmf")
+        self.checkpoint = Checkpoint(self.out, comm)
+        record = self._own_checkpoint(resume)
+        self.fm = self._mesh(resume)
         self.problem = FingertipProblem(self.fm, scene.indenters, scene.history,
                                         scene.materials, scene.model)
         check_reach(self.problem, scene)
-        self.checkpoint = Checkpoint(self.out, comm)
         self.start_time, self.steps_before, self.previous = 0.0, 0, None
         steps = scene.steps
         if resume:
             steps = self._resume()
+            self.checkpoint.remember(record)  # the resumed scene's: a later end, more times
+        self.time = self.start_time
         self.stepper = TimeStepper(self.problem, steps, scene.petsc_options,
                                    linear=scene.linear)
         self.dofs = sum(f.function_space.dofmap.index_map.size_global
@@ -136,13 +218,34 @@ class Run:
         self._open_logs(after)
         self.receptors = None if receptors is None else ReceptorRecorder(
             self.problem, self.derived, receptors, scene.section.outer, self.out, comm, after)
-        self.fields = FieldWriters(self.out, comm, self._vtx_fields(),
-                                   suffix=f"-from-{self.start_time:g}s" if resume else "")
+        self.fields = FieldWriters(self.out, comm, self._vtx_fields(), resume_after=after)
         self._last_state = (self.start_time, [f.x.array.copy() for f in self.problem.unknowns])
         self.step_count = self.steps_before
         self._bar = None
 
     # --- set-up ----------------------------------------------------------------------------
+    def _own_checkpoint(self, resume: bool) -> dict:
+        """The scene's record. A resume is checked against the run's record before anything
+        is built or written (the same experiment?); a fresh run's record replaces an earlier
+        run's checkpoints (nothing to resume until its first step)."""
+        record = scene_record(self.scene)
+        if resume:
+            stored, t = self.checkpoint.stored()
+            check_resume(stored, record, t, self.out)
+        else:
+            self.checkpoint.start(record)
+        return record
+
+    def _mesh(self, resume: bool):
+        """The mesh, written whole to mesh.xdmf (+ .h5) by a fresh run."""
+        fm = (build_mesh3d if self.three_d else build_mesh)(self.scene.section, self.comm)
+        if self.interrupts is not None:
+            self.interrupts.arm()  # gmsh has reset SIGTERM to its default
+        if not resume:
+            with whole_files(self.out, "mesh", self.comm) as folder:
+                write_xdmf(fm, folder / "mesh.xdmf")
+        return fm
+
     def _open_logs(self, after) -> None:
         """The CSV files and their samplers: the section's profiles in 2D; in 3D, across and
         along the finger through the load, and the force per unit length f(z)."""
@@ -198,6 +301,8 @@ class Run:
                    TextColumn("t = {task.completed:.3g} / {task.total:g} s"),
                    TimeElapsedColumn(), TextColumn("{task.fields[status]}"))
         show = self.progress and self.comm.rank == 0
+        if self.interrupts is not None:
+            self.interrupts.arm()  # after the mesh (gmsh) and the solvers are built
         with Progress(*columns, disable=not show, transient=False) as bar:
             self._bar = (bar, bar.add_task(scene.name, total=end, completed=self.start_time,
                                            status=""))
@@ -219,7 +324,9 @@ class Run:
             "cuts": report.cuts, "wall_time_s": report.wall_time_s,
             "krylov_iterations": report.linear_iterations}])
         at_output = any(abs(report.time - t) < 1e-9 for t in self.scene.output_times)
-        if at_output or self.step_count % self.scene.field_every == 0:
+        outputs = self.scene.outputs
+        if at_output or (outputs.fields == "every-step"
+                         and self.step_count % outputs.field_every == 0):
             self.derived.update()
             self.fields.write(report.time)
         if at_output:
@@ -227,7 +334,21 @@ class Run:
         if self.receptors is not None:
             self.receptors.write(report.time)
         self._save_checkpoint(report)
+        self.time = report.time
         self._show(report)
+        self._stop_if_asked(report.time)
+
+    def _stop_if_asked(self, t: float) -> None:
+        """After a step, with everything written: stop if a signal came to any rank (all
+        ranks stop at the same step: mpiexec may deliver the signal at different moments)."""
+        if self.interrupts is None:
+            return
+        self.interrupts.arm()
+        asked = self.interrupts.received is not None
+        if self.comm.allreduce(asked, op=MPI.LOR) and t < self.scene.history.end_time - 1e-12:
+            if self.interrupts.received is None:  # another rank's signal
+                self.interrupts.received = "a signal to another rank"
+            raise _Stop
 
     def _write_output_time(self, t: float) -> None:
         for direction, log in self.surfaces.items():
@@ -239,9 +360,10 @@ class Run:
             return
         arrays = self.arrays()  # updates the derived fields
         if self.comm.rank == 0:
-            np.savez_compressed(self.out / f"fields_t{t:g}s.npz", time=t, **arrays)
+            save_npz(self.out / f"fields_t{t:g}s.npz", time=t, **arrays)
         if self.scene.outputs.pictures:
-            field_pictures(self.problem, self.derived, self.out, t, self.scene.title)
+            with whole_files(self.out, "pictures", self.comm) as folder:
+                field_pictures(self.problem, self.derived, folder, t, self.scene.title)
 
     def _save_checkpoint(self, report) -> None:
         self.checkpoint.save(report.time, report.next_dt, self.step_count,
@@ -260,8 +382,10 @@ class Run:
             f"Δt = {report.dt:.3g} s, pen. {1e3 * d['max_penetration_mm']:.2g} µm"))
 
     # --- the end ---------------------------------------------------------------------------
-    def finish(self, converged: bool, failure: str | None, wall: float) -> dict:
-        """Close every file, write summary.json and draw the figures; returns the summary."""
+    def finish(self, converged: bool, failure: str | None, wall: float,
+               status: str | None = None) -> dict:
+        """Close every file, write summary.json and draw the figures; returns the summary.
+        `status`: "completed", "failed" or "interrupted" (default: by `converged`)."""
         for log in (self.history, *self.surfaces.values(), self.depth, self.line_force,
                     self.receptors):
             if log is not None:
@@ -274,11 +398,12 @@ class Run:
             summary = run_summary(self.out, scene_record(self.scene), self.fm.report, self.dofs,
                                   self.comm.size, converged=converged, failure=failure,
                                   wall=wall, output_times=self.scene.output_times,
-                                  mirror_factor=self.problem.mirror_factor)
+                                  mirror_factor=self.problem.mirror_factor, status=status)
             if self.scene.outputs.pictures:
-                _figures(self.out, self.scene.title)
-                if self.three_d:
-                    _figures_3d(self.out, self.scene.title)
+                with whole_files(self.out, "figures", MPI.COMM_SELF) as folder:
+                    _figures(self.out, self.scene.title, folder)
+                    if self.three_d:
+                        _figures_3d(self.out, self.scene.title, folder)
         summary = self.comm.bcast(summary, root=0)
         write_json(self.out / "summary.json", summary, self.comm)
         peak = summary.get("peak_force_N", summary.get("peak_force_N_per_mm"))
@@ -313,30 +438,31 @@ def check_reach(problem, scene: Scene) -> None:
                 f"{scene.section.outer.a:g} mm) or indent deeper.")
 
 
-def _figures_3d(out: Path, name: str) -> None:
-    """A 3D run's surface deflection across and along the finger and f(z) (rank 0)."""
+def _figures_3d(out: Path, name: str, to: Path) -> None:
+    """A 3D run's surface deflection across and along the finger and f(z) (rank 0; PNGs
+    into `to`)."""
     for direction, along in (("across", "x"), ("along", "z")):
         s = read_csv(out / f"surface_{direction}.csv")
         if s:
-            plot_surface_profiles(s, out / f"surface_{direction}.png",
+            plot_surface_profiles(s, to / f"surface_{direction}.png",
                                   title=f"{name}: {direction} the finger", along=along)
     f = read_csv(out / "line_force.csv")
     if f:
-        plot_line_force(f, out / "line_force.png", title=name)
+        plot_line_force(f, to / "line_force.png", title=name)
 
 
-def _figures(out: Path, name: str) -> None:
-    """The curves of the run, from its own CSV files (rank 0)."""
+def _figures(out: Path, name: str, to: Path) -> None:
+    """The curves of the run, from its own CSV files (rank 0; PNGs into `to`)."""
     h = read_csv(out / "history.csv")
     if h:
-        plot_force_history(h, out / "force_history.png", title=name)
+        plot_force_history(h, to / "force_history.png", title=name)
     s = read_csv(out / "surface_profile.csv") if (out / "surface_profile.csv").exists() else {}
     if s:
-        plot_surface_profiles(s, out / "surface_profile.png", title=name)
+        plot_surface_profiles(s, to / "surface_profile.png", title=name)
     d = read_csv(out / "depth_profiles.csv")
     if d:
         for t in np.unique(d["time_s"]):
-            plot_depth_profiles(d, out / f"depth_profiles_t{t:g}s.png", t, title=name)
+            plot_depth_profiles(d, to / f"depth_profiles_t{t:g}s.png", t, title=name)
 
 
 def profile_position(scene: Scene) -> tuple[float, float]:

@@ -35,6 +35,8 @@ from .validation import check_keys, positive
 
 #: The built-in scenes (inside the package: `fingertip_dolfinx/data/scenes/`).
 SCENES_DIR = builtin_dir("scenes")
+#: When a run writes its fields for ParaView (`[output] fields`).
+FIELD_MODES = ("output-times", "every-step")
 TABLES = ("name", "description", "section", "spacing", "indenters", "materials", "protocol",
           "model", "steps", "solver", "output", "accuracy", "harmonic")
 
@@ -43,10 +45,12 @@ TABLES = ("name", "description", "section", "spacing", "indenters", "materials",
 class Outputs:
     """What a run writes besides its history: profiles and pictures at `times` (s), along
     curves at `depths` (mm below the undeformed outer surface) over |x| <= profile_half_width,
-    sampled at `profile_points`; fields for ParaView every `field_every` steps; `pictures =
-    false` skips the PNG figures (a sweep of many runs may want only the numbers); `receptors`
-    names a receptor set (`"default"` or a path, `data/receptors/`) whose sites are sampled at
-    every step into receptors.csv ("" or false: none)."""
+    sampled at `profile_points`; fields for ParaView (`fields`: at the output `times`, or
+    "every-step": every `field_every` steps and at the output times; a `field_every` above 1
+    alone means "every-step"); `pictures = false` skips the PNG figures (a sweep of many runs
+    may want only the numbers); `receptors` names a receptor set (`"default"` or a path,
+    `data/receptors/`) whose sites are sampled at every step into receptors.csv ("" or false:
+    none)."""
 
     times: tuple[float, ...] = ()
     depths: tuple[float, ...] = (0.5, 0.75, 1.0)
@@ -58,6 +62,9 @@ class Outputs:
     #: 3D only: z (mm) of the cross-section with the across-finger profiles and depth curves
     #: (default: a sphere's or across-prism's centre_z, else mid-cylinder).
     section_z: float | None = None
+    #: "output-times" or "every-step" (None: "every-step" if field_every > 1, else
+    #: "output-times"; the record holds the one chosen).
+    fields: str | None = None
 
     def __post_init__(self):
         if not isinstance(self.pictures, bool):
@@ -82,6 +89,20 @@ class Outputs:
         if not (isinstance(self.field_every, int) and self.field_every >= 1):
             raise InputError("output.field_every", f"got {self.field_every!r}.",
                              "use an integer >= 1.")
+        object.__setattr__(self, "fields", self._field_mode())
+
+    def _field_mode(self) -> str:
+        """When fields go to ParaView: `fields`, or what `field_every` alone asks for."""
+        if self.fields is None:
+            return "every-step" if self.field_every > 1 else "output-times"
+        if self.fields not in FIELD_MODES:
+            raise InputError("output.fields", f"got {self.fields!r}.",
+                             'use "output-times" (the default) or "every-step".')
+        if self.fields == "output-times" and self.field_every > 1:
+            raise InputError("output.field_every", f"{self.field_every} is the stride of "
+                             'fields = "every-step", but output.fields = "output-times".',
+                             'set output.fields = "every-step", or leave field_every out.')
+        return self.fields
 
 
 @dataclass(frozen=True)

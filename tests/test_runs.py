@@ -1,0 +1,238 @@
+"""A run a researcher can trust: a resume never mixes two experiments, Ctrl-C (SIGINT) and
+SIGTERM stop a real `fingertip run` at a step boundary with a record and exit 130 (on 1 and 2
+ranks), files are whole, and fields go to ParaView at the output times, one time line per
+field across a resume.
+
+The signal tests launch the command themselves (`mpiexec -n 2` for two ranks): they are
+serial tests."""
+
+import json
+import os
+import signal
+import struct
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from fingertip_dolfinx.cli import main
+from fingertip_dolfinx.errors import InputError, RunInterrupted
+from fingertip_dolfinx.outputs import check_resume, read_csv
+from fingertip_dolfinx.runner import Run, run_scene
+from fingertip_dolfinx.scene import load_scene, scene_record
+
+REPO = Path(__file__).resolve().parents[1]
+BIN = Path(sys.executable).parent
+#: A coarse one-point test in ten steps of 0.1 s, fields at 0.2 and 1 s: tens of seconds.
+SETS = ["section.mesh.min_size=0.2", "section.mesh.max_size=1.0", "section.mesh.bone_size=2.0",
+        "output.profile_points=121", "steps.dt_initial=0.1", "steps.dt_max=0.1",
+        "output.times=[0.2, 1.0]"]
+ARGS = ["run", "1pt", *(a for s in SETS for a in ("--set", s)), "--quiet"]
+FIELDS = ("displacement", "log_strain", "strain_energy_density", "pore_pressure")
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory):
+    """An uninterrupted run (the command, in this process): its directory."""
+    out = tmp_path_factory.mktemp("finished")
+    handlers = [signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)]
+    assert main([*ARGS, "--out", str(out)]) == 0
+    # the run's own handlers are gone again: Python's Ctrl-C is Python's
+    assert [signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)] == handlers
+    return out
+
+
+def _final_force(out: Path) -> float:
+    return float(read_csv(out / "history.csv")["force_N_per_mm"][-1])
+
+
+def bp_times(path: Path) -> list[float]:
+    """The times of a VTX series, read from its ADIOS2 BP4 metadata: md.idx holds one
+    64-byte record per step (after a 64-byte header) with the step's span in md.0, where the
+    variable `step` (DOLFINx's time) carries its value as the first characteristic."""
+    index, meta = (path / "md.idx").read_bytes(), (path / "md.0").read_bytes()
+    times = []
+    for i in range(1, len(index) // 64):
+        record = struct.unpack("<8Q", index[64 * i:64 * i + 64])
+        step = meta[record[2]:record[5]]
+        at = step.find(b"\x04\x00step")
+        assert at >= 0, f"no time in step {i} of {path}"
+        times.append(struct.unpack("<d", step[at + 37:at + 45])[0])
+    return times
+
+
+# --- resume: never two experiments in one directory ---------------------------------------
+
+
+def test_a_resume_that_changes_the_physics_is_refused_and_the_record_left_alone(
+        finished, capsys):
+    """The issue's reproduction on a finished run: k0 changed on --resume is refused with exit
+    2, the key, both values and the fix; the same scene computes nothing, says so, and
+    rewrites nothing (summary.json byte for byte and its time)."""
+    summary = finished / "summary.json"
+    before, stamp = summary.read_bytes(), summary.stat().st_mtime_ns
+    key = "materials.subcutaneous.permeability.k0"
+    code = main([*ARGS, "--set", f"{key}=1000", "--resume", "--out", str(finished)])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert f"{key}: the run there was computed to t = 1 s with {key} = 0.001; this scene has " \
+           "1000.0" in err and "start a new --out, or resume without --set" in err
+    assert main([*ARGS, "--resume", "--out", str(finished)]) == 0
+    assert "already complete" in capsys.readouterr().err
+    assert summary.read_bytes() == before and summary.stat().st_mtime_ns == stamp
+    assert json.loads(before)["status"] == "completed"
+
+
+def test_what_a_resume_may_change():
+    """Later end times, more cycles, output times after the checkpoint, pictures: allowed.
+    Anything that changes d(t) before the checkpoint, the materials, the mesh, the steps, or
+    drops an output time already written: refused, naming the key."""
+    base = scene_record(load_scene("1pt", SETS))
+
+    def resumed(*sets, t=0.5):
+        check_resume(base, scene_record(load_scene("1pt", [*SETS, *sets])), t, Path("D"))
+
+    resumed("protocol.end_time=3.0", "output.times=[0.2, 1.0, 2.5]", "output.pictures=false",
+            'output.fields="every-step"')
+    resumed("protocol.end_time=3.0", "output.times=[0.2, 2.0]", t=0.6)  # 1.0 not yet written
+    for sets, key in ((["protocol.ramp_time=2.0", "protocol.end_time=2.0"], "protocol.ramp_time"),
+                      (["protocol.depth=0.9"], "protocol.depth"),
+                      (["materials.nail.E=200.0"], "materials.nail.E"),
+                      (["model.skin_viscoelastic=false"], "model.skin_viscoelastic"),
+                      (["section.mesh.min_size=0.1"], "section.mesh.min_size"),
+                      (["steps.dt_max=0.2"], "steps.dt_max"),
+                      (["output.times=[1.0]"], "output.times"),
+                      (["output.depths=[0.5]"], "output.depths")):
+        with pytest.raises(InputError, match=key):
+            resumed(*sets)
+    with pytest.raises(InputError, match=r"keep the output times already written, \[0.2\]"):
+        resumed("output.times=[0.3, 1.0]")
+
+
+def test_a_resume_may_run_on_past_the_end(finished, tmp_path):
+    """A finished run continued to a later end time: the steps after 1 s are added to the same
+    files, one time line per field, and the record is the longer scene's."""
+    import shutil
+
+    out = tmp_path / "longer"
+    shutil.copytree(finished, out)
+    assert main([*ARGS, "--set", "protocol.end_time=1.2", "--set", "output.times=[0.2, 1.0, 1.2]",
+                 "--resume", "--out", str(out)]) == 0
+    h = read_csv(out / "history.csv")
+    assert np.all(np.diff(h["time_s"]) > 0) and h["time_s"][-1] == pytest.approx(1.2)
+    assert bp_times(out / "displacement.bp") == pytest.approx([0.2, 1.0, 1.2], abs=1e-12)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "completed" and summary["scene_data"]["protocol"]["end_time"] == 1.2
+
+
+# --- fields at the output times ------------------------------------------------------------
+
+
+def test_fields_go_to_paraview_at_the_output_times(finished):
+    """Ten steps, two output times: each field's series holds the two times only (every step
+    was the default: 11 VTX steps, 5x the bytes)."""
+    for name in FIELDS:
+        assert bp_times(finished / f"{name}.bp") == pytest.approx([0.2, 1.0], abs=1e-12), name
+    assert len(read_csv(finished / "history.csv")["time_s"]) >= 10
+
+
+def test_the_fields_key_is_checked():
+    assert load_scene("1pt").outputs.fields == "output-times"
+    assert load_scene("1pt", ["output.field_every=5"]).outputs.fields == "every-step"
+    with pytest.raises(InputError, match='output.fields: got .every-time.. Fix: use "output-'):
+        load_scene("1pt", ['output.fields="every-time"'])
+    with pytest.raises(InputError, match="output.field_every: 5 is the stride of fields"):
+        load_scene("1pt", ['output.fields="output-times"', "output.field_every=5"])
+
+
+# --- interrupting ---------------------------------------------------------------------------
+
+
+def test_the_api_raises_a_keyboard_interrupt_after_writing_the_record(tmp_path, monkeypatch):
+    """A SIGINT during a step of `run_scene`: the step ends, the files and summary.json are
+    written, and RunInterrupted (a KeyboardInterrupt) reaches the caller; Python's own Ctrl-C
+    handler is back."""
+    on_step = Run.on_step
+
+    def signal_in_step_two(self, report):
+        if self.step_count == 1:  # the second step: the signal comes while it is written
+            os.kill(os.getpid(), signal.SIGINT)
+        on_step(self, report)
+
+    monkeypatch.setattr(Run, "on_step", signal_in_step_two)
+    with pytest.raises(KeyboardInterrupt) as caught:
+        run_scene(load_scene("1pt", SETS), tmp_path, progress=False, comm=MPI.COMM_SELF)
+    assert isinstance(caught.value, RunInterrupted) and caught.value.signal == "SIGINT"
+    assert caught.value.time == pytest.approx(0.2)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["status"] == "interrupted" and summary["end_time_s"] == pytest.approx(0.2)
+    assert not summary["converged"]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def _interrupt(out: Path, ranks: int, sig: signal.Signals) -> subprocess.CompletedProcess:
+    """`fingertip run` (under mpiexec with ranks > 1) into `out`, sent `sig` once its
+    history.csv has two rows: to mpiexec for SIGINT (it passes Ctrl-C on to the ranks), to
+    every process for SIGTERM (as a batch system does)."""
+    launch = [str(BIN / "mpiexec"), "-n", str(ranks)] if ranks > 1 else []
+    command = [*launch, sys.executable, "-m", "fingertip_dolfinx.cli", *ARGS, "--out", str(out)]
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True, env=env, start_new_session=True)
+    history, waited = out / "history.csv", time.monotonic()
+    while not (history.exists() and len(history.read_text().splitlines()) >= 3):
+        assert process.poll() is None, process.communicate()
+        assert time.monotonic() - waited < 300, "no two steps in 300 s"
+        time.sleep(0.1)
+    if sig == signal.SIGINT:
+        process.send_signal(sig)
+    else:
+        os.killpg(process.pid, sig)
+    stdout, stderr = process.communicate(timeout=300)
+    return subprocess.CompletedProcess(command, process.returncode, stdout, stderr)
+
+
+def _resume(out: Path, ranks: int) -> None:
+    launch = [str(BIN / "mpiexec"), "-n", str(ranks)] if ranks > 1 else []
+    subprocess.run([*launch, sys.executable, "-m", "fingertip_dolfinx.cli", *ARGS, "--out",
+                    str(out), "--resume"], check=True, env=dict(os.environ, PYTHONPATH=str(REPO)),
+                   capture_output=True, timeout=600)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("ranks, sig", [(1, signal.SIGINT), (2, signal.SIGINT),
+                                        (2, signal.SIGTERM)])
+def test_a_signal_stops_a_real_run_and_resume_finishes_it(finished, tmp_path, ranks, sig):
+    """A real signal to a real `fingertip run`: exit 130, one line saying where it stopped and
+    the command that continues it, no traceback, summary.json "interrupted" at the last row of
+    history.csv, no half file; `--resume` then ends where the uninterrupted run ends (the
+    final force to the Newton tolerance: both solve the same steps) with one time line per
+    field."""
+    out = tmp_path / "run"
+    result = _interrupt(out, ranks, sig)
+    key = "materials.subcutaneous.permeability.k0"  # the issue's mixed experiment: refused
+    assert main([*ARGS, "--set", f"{key}=1000", "--resume", "--out", str(out)]) == 2
+    assert result.returncode == 130, result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in result.stderr, result.stderr
+    h = read_csv(out / "history.csv")
+    launch = f"mpiexec -n {ranks} " if ranks > 1 else ""
+    assert lines[0].startswith(f"interrupted at t = {h['time_s'][-1]:.6g} s; continue with: "
+                               f"{launch}fingertip run 1pt --set ")
+    assert lines[0].endswith(f"--out {out} --resume")
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "interrupted" and summary["end_time_s"] == h["time_s"][-1]
+    assert summary["failure"] == f"interrupted by {sig.name} at t = {h['time_s'][-1]:.6g} s"
+    assert 0.2 - 1e-12 <= h["time_s"][-1] < 1.0  # the first output time's fields are written
+    assert not [p for p in out.rglob("*") if ".tmp" in p.name]
+    _resume(out, ranks)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "completed" and summary["end_time_s"] == pytest.approx(1.0)
+    assert _final_force(out) == pytest.approx(_final_force(finished), rel=1e-7)
+    for name in FIELDS:
+        assert bp_times(out / f"{name}.bp") == pytest.approx([0.2, 1.0], abs=1e-12), name
+    assert not list(out.glob("*-from-*"))
