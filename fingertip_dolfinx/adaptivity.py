@@ -50,10 +50,11 @@ The loop (`adapt`), level k = 0, 1, ...:
    that combines with the scene's fields by min (`mesh.build_mesh(..., size=)`).
 
 Files: `out/level-<k>/` (a normal run each, plus `size_map.npz` for k > 0), the finest level's
-files copied to `out/`, `out/adapt.json` (per level: cells, dofs, wall time, key outputs,
-estimates, ratios, the next level's plan; the mesh settled on; the total cost) and an
-`adaptivity` table in `out/summary.json`. Under MPI the runs use every rank; the indicator and
-the sizes are computed on rank 0 (2 ranks reproduce 1 rank's meshes and values).
+files copied to `out/`, `out/adapt.json` (per level: cells, dofs, wall time, key outputs and
+the times they were read at, estimates, ratios, the next level's plan; the mesh settled on;
+the total cost) and an `adaptivity` table in `out/summary.json`. Under MPI the runs use every
+rank; the indicator and the sizes are computed on rank 0 (2 ranks reproduce 1 rank's meshes
+and values).
 """
 
 from __future__ import annotations
@@ -384,7 +385,8 @@ def zones(result, scene, options: AdaptOptions) -> dict[str, Zone]:
     from the load to the deflections read farthest out (|x| <= 3 mm, or each indenter's
     half-width beyond its centre, + load_margin); "e_max" and "sed_MPa", discs of
     peak_radius around the depth-curve points (key depth, at the output time of the key
-    output's largest value) within 10 % of the curve's peak (symmetric twins and flat peaks included)."""
+    output's largest value) within 10 % of the curve's peak (symmetric twins and flat peaks
+    included)."""
     outer, o = scene.section.outer, scene.outputs
     reach = [abs(ind.centre_x) + _half_width(ind, outer) for ind in scene.indenters]
     half = min(max(DEFLECTION_REACH, *reach) + options.load_margin, 0.95 * outer.a)
@@ -575,6 +577,7 @@ def _level_record(k: int, run_dir: Path, summary: dict, elapsed: float, data: li
             "time_steps": summary["time_steps"], "newton_iterations":
             summary["newton_iterations"], "wall_time_s": summary["wall_time_s"],
             "elapsed_s": elapsed, "values": {key: values[key] for key in KEYS},
+            "read_at_s": {key: values[f"{key}_t_s"] for key in KEYS},
             "ratios": ratios,
             "zones": {name: {"centres": z.centres.tolist(), "radii": z.radii.tolist()}
                       for name, z in new["zones"].items()}}

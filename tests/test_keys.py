@@ -103,3 +103,17 @@ def test_a_sweep_at_another_depth_stops_before_its_first_run(tmp_path, capsys):
     assert main(argv) == 2
     assert "0.75" in capsys.readouterr().err
     assert not any(tmp_path.iterdir())
+
+
+def test_records_with_the_old_names_are_refused(tmp_path):
+    """A fidelity.csv (for --fidelity-table) or an accuracy reference written with the old
+    names: one line saying to rerun, not a KeyError."""
+    from fingertip_dolfinx.studies.fidelity import read_table
+    from fingertip_dolfinx.studies.keys import relative_errors
+
+    old = tmp_path / "fidelity.csv"
+    old.write_text("model,max_error,error_peak_force,peak_force,failure\nfull,0,0,1e-3,\n")
+    with pytest.raises(InputError, match="study fidelity"):
+        read_table(old)
+    with pytest.raises(InputError, match="peak_force"):
+        relative_errors(dict.fromkeys(KEYS, 1.0), {"peak_force": 1.0}, "accuracy.json")

@@ -3,16 +3,18 @@ fidelity studies, `run --tol` (adaptivity) and `run --fidelity auto`.
 
 Each key output (`KeyOutput`) is a quantity in a unit, read at a place (a surface point, the
 peak along a depth curve) at a time (the end of the run, or the largest value over the run),
-and its column name says all four: ``{quantity}_{unit}[_peak]_at_{place}_{time}``, or
-``{quantity}_{unit}_{time}`` when the quantity has no place (the force):
+and its column name says all four (docs/guide/key-outputs.md): ``{quantity}_{unit}_at_x{X}mm_
+{when}`` (a surface point), ``{quantity}_{unit}_peak_at_depth{D}mm_{when}`` (a depth curve's
+peak), ``{quantity}_{unit}_max_over_run`` or ``{quantity}_{unit}_at_t_end`` (no place), with
+when = max_over_run | t_end and no unit for a dimensionless quantity:
 
-| column | quantity | read from |
-| --- | --- | --- |
-| force_N_per_mm_max_over_run | indenter force | history.csv: the largest over every step |
-| force_N_per_mm_at_t_end | indenter force | history.csv: the row at the run's end_time |
-| deflection_mm_at_x{1,2,3}mm_t_end | surface deflection | surface_profile.csv at end_time, x = ±r averaged |
-| e_max_peak_at_depth0.75mm_max_over_run | max principal log strain (1) | depth_profiles.csv: largest along the 0.75 mm curve and over the output times |
-| sed_MPa_peak_at_depth0.75mm_max_over_run | strain energy density | the same |
+- force_N_per_mm_max_over_run: the indenter force (history.csv), the largest over every step;
+- force_N_per_mm_at_t_end: the same at the run's end time (history.csv's last row);
+- deflection_mm_at_x{1,2,3}mm_t_end: the surface deflection at x = ±1, 2, 3 mm (both sides
+  averaged) at the end time (surface_profile.csv);
+- e_max_peak_at_depth0.75mm_max_over_run, sed_MPa_peak_at_depth0.75mm_max_over_run: the max
+  principal log strain (dimensionless) and the strain energy density, the largest along the
+  0.75 mm depth curve and over the output times (depth_profiles.csv).
 
 "max over the run" is the largest value the run wrote: every time step for the force
 (history.csv), the output times for the depth curves (depth_profiles.csv holds those only, so a
@@ -79,6 +81,12 @@ class KeyOutput:
         where = (f"x = ±{self.x_mm:g} mm, " if self.x_mm is not None else
                  f"peak at {self.depth_mm:g} mm depth, " if self.depth_mm is not None else "")
         return f"{name}{unit}\n{where}{'max over run' if self.time == MAX_OVER_RUN else 't_end'}"
+
+    def record(self) -> dict:
+        """The definition as plain data (for summary.json)."""
+        return {"quantity": self.quantity, "unit": self.unit, "x_mm": self.x_mm,
+                "depth_mm": self.depth_mm, "time": self.time, "source": self.source,
+                "time_column": f"{self.column}_t_s"}
 
     @property
     def short(self) -> str:

@@ -48,7 +48,8 @@ def parameter_sweep(scene_name: str, key: str, out: Path, *, values: Sequence | 
     if MPI.COMM_WORLD.rank == 0:
         rows = [{"label": label, "value": v, **key_outputs(out / label)}
                 for label, v in zip(labels, settings)]
-        result = {"scene": scene_name, "key": key, "factors": list(factors or []), "rows": rows}
+        result = {"scene": scene_name, "key": key, "factors": list(factors or []), "rows": rows,
+                  "key_outputs": {k.column: k.record() for k in KEY_OUTPUTS}}
         _write(rows, out)
         _plot(out, result)
     result = MPI.COMM_WORLD.bcast(result, root=0)
