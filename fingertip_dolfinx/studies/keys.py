@@ -123,13 +123,18 @@ def check_scene(scene, where: str) -> None:
         raise InputError(where, f"the key outputs read the depth curve at {KEY_DEPTH:g} mm, but "
                          f"output.depths = {list(scene.depths)}.",
                          f"add {KEY_DEPTH:g}: --set 'output.depths="
-                         f"{sorted({*scene.depths, KEY_DEPTH})}'.")
+                         f"{_listed({*scene.depths, KEY_DEPTH})}'.")
     end = scene.history.end_time
     if not np.isclose(scene.output_times, end).any():
         raise InputError(where, f"the key deflections are read at the end of the run "
                          f"(t = {end:g} s), but output.times = {list(scene.output_times)}.",
                          f"add {end:g}: --set 'output.times="
-                         f"{sorted({*scene.output_times, end})}'.")
+                         f"{_listed({*scene.output_times, end})}'.")
+
+
+def _listed(values) -> str:
+    """Sorted numbers as a TOML list: [0.75, 1.2], [1, 5]."""
+    return "[" + ", ".join(f"{v:g}" for v in sorted(float(v) for v in values)) + "]"
 
 
 def key_outputs(run: Path) -> dict[str, float]:
