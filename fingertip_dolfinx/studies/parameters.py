@@ -154,7 +154,7 @@ def _mappable(norm, cmap):
 
 def _plot_histories(ax, out: Path, rows: list[dict], colours) -> None:
     """Force against time, one curve per run; thicker lines underneath so that curves that
-    coincide stay visible; a symlog time axis (linear up to the first output) for long holds."""
+    coincide stay visible; a symlog time axis (linear up to the force peak) for long holds."""
     from matplotlib.ticker import FuncFormatter
 
     end = 0.0
