@@ -154,7 +154,7 @@ def _score(out: Path, reference: Path):
     reference values (its accuracy.json, "reference")."""
     ref = json.loads(reference.read_text())["reference"]
     values = key_outputs(out)
-    errors = relative_errors(values, ref)
+    errors = relative_errors(values, ref, str(reference))
     for k in KEYS:
         print(f"  {k}: {values[k]:.6g} (reference {ref[k]:.6g}): {errors[k]:.3%}")
     worst = max(KEYS, key=errors.get)

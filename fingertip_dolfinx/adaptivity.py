@@ -50,10 +50,11 @@ The loop (`adapt`), level k = 0, 1, ...:
    that combines with the scene's fields by min (`mesh.build_mesh(..., size=)`).
 
 Files: `out/level-<k>/` (a normal run each, plus `size_map.npz` for k > 0), the finest level's
-files copied to `out/`, `out/adapt.json` (per level: cells, dofs, wall time, key outputs,
-estimates, ratios, the next level's plan; the mesh settled on; the total cost) and an
-`adaptivity` table in `out/summary.json`. Under MPI the runs use every rank; the indicator and
-the sizes are computed on rank 0 (2 ranks reproduce 1 rank's meshes and values).
+files copied to `out/`, `out/adapt.json` (per level: cells, dofs, wall time, key outputs and
+the times they were read at, estimates, ratios, the next level's plan; the mesh settled on;
+the total cost) and an `adaptivity` table in `out/summary.json`. Under MPI the runs use every
+rank; the indicator and the sizes are computed on rank 0 (2 ranks reproduce 1 rank's meshes
+and values).
 """
 
 from __future__ import annotations
@@ -72,18 +73,14 @@ from mpi4py import MPI
 from .errors import ConvergenceError, InputError
 from .mesh import SIZE_GROWTH, SizeMap
 from .post import depth_curve
-from .studies.keys import KEYS, key_outputs
+from .studies.keys import DEFLECTION_POINTS, KEY_OUTPUTS, KEYS, check_scene, key_outputs, read_key
 
-#: The depth (mm) of the key outputs' depth curve (`studies.keys.key_outputs`).
-KEY_DEPTH = 0.75
 #: |x| (mm) of the farthest surface deflection among the key outputs.
-DEFLECTION_REACH = 3.0
+DEFLECTION_REACH = max(DEFLECTION_POINTS)
 #: Which region each key output's error comes from: the pulp under the indenters (forces and
 #: surface deflections, energy-like outputs of the whole loaded zone) or the disc around the
-#: depth-curve peak of its own field (point values).
-REGION_OF = {"peak_force": "load", "final_force": "load", "deflection_1mm": "load",
-             "deflection_2mm": "load", "deflection_3mm": "load",
-             "peak_e_max_0.75mm": "e_max", "peak_sed_0.75mm": "sed_MPa"}
+#: depth-curve peak of its own field (point values: "e_max", "sed_MPa").
+REGION_OF = {k.column: "load" if k.depth_mm is None else k.name for k in KEY_OUTPUTS}
 FLOOR_DIVISOR = 16.0  # the default smallest size: level 0's min_size / this
 #: A region refined by less than this (its cells at the floor) gives no estimate.
 UNREFINED = 1.05
@@ -387,8 +384,9 @@ def zones(result, scene, options: AdaptOptions) -> dict[str, Zone]:
     """The output regions of a run: "load", the band of depth load_margin under the pulp
     from the load to the deflections read farthest out (|x| <= 3 mm, or each indenter's
     half-width beyond its centre, + load_margin); "e_max" and "sed_MPa", discs of
-    peak_radius around the depth-curve points (key depth, first output time) within 10 % of
-    the curve's peak (symmetric twins and flat peaks included)."""
+    peak_radius around the depth-curve points (key depth, at the output time of the key
+    output's largest value) within 10 % of the curve's peak (symmetric twins and flat peaks
+    included)."""
     outer, o = scene.section.outer, scene.outputs
     reach = [abs(ind.centre_x) + _half_width(ind, outer) for ind in scene.indenters]
     half = min(max(DEFLECTION_REACH, *reach) + options.load_margin, 0.95 * outer.a)
@@ -396,17 +394,16 @@ def zones(result, scene, options: AdaptOptions) -> dict[str, Zone]:
     ys = outer.cy - outer.b * np.sqrt(np.clip(1 - (xs / outer.a) ** 2, 0.0, None))
     out = {"load": Zone(np.column_stack([xs, ys]), np.full(len(xs), options.load_margin))}
     d = result.depth
-    first = float(np.min(d["time_s"]))
-    depth = KEY_DEPTH if np.isclose(d["depth_mm"], KEY_DEPTH).any() else float(
-        np.min(d["depth_mm"]))
-    rows = np.isclose(d["time_s"], first) & np.isclose(d["depth_mm"], depth)
-    xs, points = depth_curve(outer, depth, o.profile_half_width, o.profile_points)
-    for name in ("e_max", "sed_MPa"):
-        q = d[name][rows]
+    for key in (k for k in KEY_OUTPUTS if k.depth_mm is not None):
+        # the curve at the time the key output was read (its largest value over the run)
+        _, t = read_key(key, d, float(np.max(d["time_s"])), f"{result.out}/depth_profiles.csv")
+        rows = np.isclose(d["time_s"], t) & np.isclose(d["depth_mm"], key.depth_mm)
+        xs, points = depth_curve(outer, key.depth_mm, o.profile_half_width, o.profile_points)
+        q = d[key.name][rows]
         peak = np.nanmax(q)
         near = d["x_mm"][rows][q >= peak - 0.1 * abs(peak)]
         index = np.abs(xs[None, :] - near[:, None]).argmin(axis=1)
-        out[name] = Zone(points[index], np.full(len(index), options.peak_radius))
+        out[key.name] = Zone(points[index], np.full(len(index), options.peak_radius))
     return out
 
 
@@ -470,6 +467,7 @@ def adapt(scene, out: str | Path, options: AdaptOptions | None = None, *,
         options = AdaptOptions(tol=scene.accuracy.tol or 0.01,
                                max_levels=scene.accuracy.max_levels)
     comm = comm or MPI.COMM_WORLD
+    check_scene(scene, f"{scene.name}: the adaptive loop (--tol)")
     out = Path(out)
     started, cpu = time.perf_counter(), time.process_time()
     base = start_scene(scene, options)
@@ -579,6 +577,7 @@ def _level_record(k: int, run_dir: Path, summary: dict, elapsed: float, data: li
             "time_steps": summary["time_steps"], "newton_iterations":
             summary["newton_iterations"], "wall_time_s": summary["wall_time_s"],
             "elapsed_s": elapsed, "values": {key: values[key] for key in KEYS},
+            "read_at_s": {key: values[f"{key}_t_s"] for key in KEYS},
             "ratios": ratios,
             "zones": {name: {"centres": z.centres.tolist(), "radii": z.radii.tolist()}
                       for name, z in new["zones"].items()}}

@@ -455,6 +455,7 @@ def _run_sweep(args) -> int:
 
 def _run_parameter_sweep(args) -> int:
     from .scene import parse_override
+    from .studies.keys import KEY_OUTPUTS
     from .studies.parameters import parameter_sweep
 
     if (args.values is None) == (args.factors is None):
@@ -467,8 +468,9 @@ def _run_parameter_sweep(args) -> int:
                              factors=args.factors, overrides=_scene_overrides(args),
                              progress=not args.quiet)
     for row in result["rows"]:
-        _rank0_print(f"{row['label']:>24}: peak force {row['peak_force']:.5g} N/mm, final "
-                     f"{row['final_force']:.5g} N/mm, peak SED {row['peak_sed_0.75mm']:.4g} MPa")
+        _rank0_print(f"{row['label']:>24}: " + ", ".join(
+            f"{key.short} {row[key.column]:.5g}" for key in KEY_OUTPUTS))
+    _rank0_print("columns: " + ", ".join(f"{k.short} = {k.column}" for k in KEY_OUTPUTS))
     _rank0_print(f"sweep over {args.param} written to {args.out}/sweep.csv")
     return 0
 

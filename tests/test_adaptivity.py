@@ -271,7 +271,7 @@ def test_loop_stops_and_writes_a_normal_run_plus_adapt_json(loop):
     assert summary["scene_data"]["section"]["mesh"]["min_size"] == 0.4  # level 0's
     last = len(report["levels"]) - 1
     assert (out / "loop" / f"level-{last}" / "size_map.npz").is_file()
-    assert result.force.max() == pytest.approx(report["levels"][-1]["values"]["peak_force"])
+    assert result.force.max() == pytest.approx(report["levels"][-1]["values"]["force_N_per_mm_max_over_run"])
     cells = [lv["cells"] for lv in report["levels"]]
     assert cells == sorted(cells) and cells[-1] > cells[0]
 

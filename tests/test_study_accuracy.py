@@ -50,12 +50,12 @@ def test_study_writes_its_files(study):
 
 def test_force_errors_decrease_under_mesh_refinement(study):
     rows = _p2(study[1])
-    for key in ("peak_force", "final_force"):
+    for key in ("force_N_per_mm_max_over_run", "force_N_per_mm_at_t_end"):
         errors = [r[f"error_{key}"] for r in rows]
         assert errors[0] > errors[1] > errors[2] > 0, (key, errors)
     # the middle mesh's error matches the quadrilateral one's order of magnitude
     q2 = next(r for r in study[1]["rows"] if r["family"] == "Q2/Q1 quadrilaterals")
-    assert q2["error_peak_force"] < 3 * rows[0]["error_peak_force"]
+    assert q2["error_force_N_per_mm_max_over_run"] < 3 * rows[0]["error_force_N_per_mm_max_over_run"]
 
 
 def test_observed_order_of_the_peak_force_for_p2(study):
@@ -64,10 +64,10 @@ def test_observed_order_of_the_peak_force_for_p2(study):
     and straight-sided cells on the curved outline and interfaces cap it near O(h^2).
     Measured: 1.99 (r = 2). The upper bound 2.5 leaves room for the noise of non-nested
     unstructured meshes, not for a different method."""
-    est = study[1]["richardson"]["peak_force"]
+    est = study[1]["richardson"]["force_N_per_mm_max_over_run"]
     assert 1.5 <= est["order"] <= 2.5, est
     rows = _p2(study[1])
-    f1, f2, f3 = (r["peak_force"] for r in rows)
+    f1, f2, f3 = (r["force_N_per_mm_max_over_run"] for r in rows)
     assert min(f1, f2, f3) - abs(f2 - f3) <= est["estimate"] <= max(f1, f2, f3)
 
 
@@ -129,9 +129,9 @@ def test_cheapest_within_one_percent_on_synthetic_rows():
     rows = [row("coarse", 1.0, 1000, 0.05), row("medium", 5.0, 4000, 0.009),
             row("fine", 20.0, 16000, 0.001), row("other model", 0.5, 500, 0.0, "drained"),
             row("medium, small dt", 5.3, 4000, 0.008, steps=20)]
-    rows[1]["error_peak_sed_0.75mm"] = 0.011  # one key above 1 %: out
+    rows[1]["error_sed_MPa_peak_at_depth0.75mm_max_over_run"] = 0.011  # one key above 1 %: out
     assert acc.cheapest_within(rows)["family"] == "medium, small dt"
-    rows[1]["error_peak_sed_0.75mm"] = 0.009
+    rows[1]["error_sed_MPa_peak_at_depth0.75mm_max_over_run"] = 0.009
     # 5.0 s and 5.3 s are a tie (timing noise): same dofs, fewer time steps wins
     assert acc.cheapest_within(rows)["family"] == "medium"
     assert acc.cheapest_within(rows, tol=1e-4) is None

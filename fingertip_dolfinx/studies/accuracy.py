@@ -13,7 +13,7 @@
 - time-step sizes: `dt_initial` and `dt_max` halved on one mesh of the reference family,
 
 measures wall time, the peak resident memory during each run and the number of unknowns, and
-scores the key outputs (`keys.KEYS`) against a Richardson estimate of the converged value.
+scores the key outputs (`keys.KEY_OUTPUTS`) against a Richardson estimate of the converged value.
 
 **Reference.** From the last three mesh levels of the reference family (the first one, P2 on
 triangles) with ratio r: p = log(|f1 - f2| / |f2 - f3|) / log r, f_inf = f3 + (f3 - f2)/(r^p - 1).
@@ -47,7 +47,7 @@ from pathlib import Path
 from mpi4py import MPI
 
 from ..errors import ConvergenceError
-from .keys import KEYS, key_outputs
+from .keys import KEY_OUTPUTS, KEYS, TIME_COLUMNS, check_scene, key_outputs
 
 TOL = 0.01  # "1 % on every key output"
 
@@ -280,6 +280,7 @@ def run_accuracy_study(scene_name: str, out: Path, *, levels: int = 3, coarse: b
         raise ValueError("levels must be >= 2")
     base_overrides = list(STUDY_DEFAULTS) + list(plan.extra) + list(overrides)
     scene, sizes = _mesh_plan(scene_name, base_overrides, plan, levels)
+    check_scene(scene, f"accuracy study of {scene_name}")
     families, notes = families_for(scene)
     if plan is COARSE:
         notes.append("Coarse study: max_size and bone_size are held at a coarse value while "
@@ -526,7 +527,7 @@ CSV_COLUMNS = ("family", "model", "kind", "level", "h_mm", "max_size_mm", "bone_
                "degree", "cell", "dt_initial_s", "dt_max_s", "dofs", "time_steps",
                "newton_iterations", "wall_time_s", "total_time_s", "cpu_time_s", "peak_rss_MB",
                "run_memory_MB", "memory_method", "converged", "max_error",
-               *(f"error_{k}" for k in KEYS), *KEYS, "run", "settings", "failure")
+               *(f"error_{k}" for k in KEYS), *KEYS, *TIME_COLUMNS, "run", "settings", "failure")
 
 
 def read_table(path: Path) -> list[dict]:
@@ -562,16 +563,15 @@ def _write(result: dict, out: Path):
     meta = {k: v for k, v in result.items() if k != "rows"}
     (out / "accuracy.json").write_text(json.dumps(meta, indent=1, default=str))
 
-    short = {"peak_force": "F peak", "final_force": "F end", "deflection_1mm": "w 1 mm",
-             "deflection_2mm": "w 2 mm", "deflection_3mm": "w 3 mm",
-             "peak_e_max_0.75mm": "e_max", "peak_sed_0.75mm": "SED"}
+    short = {k.column: k.short for k in KEY_OUTPUTS}
     lines = [f"# Accuracy study: `{result['scene']}` "
              f"({'coarse' if result['coarse'] else 'full'}; mesh ratio r = {result['ratio']:.4g})",
              "", "**" + result["sentence"] + "**", "",
              "Relative error of each key output against the Richardson estimate of the converged "
              "value (mesh levels of the reference family, plus the Δt correction). Wall time: "
              "the time stepping (summary.json); memory: the process's peak resident set during "
-             "the run, summed over ranks.", "",
+             "the run, summed over ranks. Key outputs: " + ", ".join(
+                 f"{k.short} = `{k.column}`" for k in KEY_OUTPUTS) + ".", "",
              "| family | h (mm) | dt_max (s) | dofs | wall (s) | peak RSS (MB) | "
              + " | ".join(short[k] for k in KEYS) + " | max |",
              "| --- | ---: | ---: | ---: | ---: | ---: | " + " | ".join("---:" for _ in KEYS)

@@ -9,7 +9,7 @@
 | full | biphasic subcutaneous tissue (the reference) |
 | full, rigid bone | the full model with bone and nail rigid and held |
 
-Each rung's key outputs (`keys.KEYS`) are compared with the full model's; `pick` names the
+Each rung's key outputs (`keys.KEY_OUTPUTS`) are compared with the full model's; `pick` names the
 cheapest rung whose largest relative error stays under a tolerance.
 """
 
@@ -22,8 +22,8 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from ..errors import ConvergenceError
-from .keys import KEYS, key_outputs, relative_errors
+from ..errors import ConvergenceError, InputError
+from .keys import KEY_OUTPUTS, KEYS, TIME_COLUMNS, check_scene, key_outputs, relative_errors
 
 LADDER = (
     ("continuum", ["model.tissue=\"continuum\""]),
@@ -50,6 +50,7 @@ def run_fidelity_study(scene_name: str, out: Path, overrides=(), progress: bool 
     results, failures = {}, {}
     for name, settings in LADDER:
         scene = load_scene(scene_name, list(overrides) + settings)
+        check_scene(scene, f"fidelity study of {scene_name}")
         try:
             run_scene(scene, out / _slug(name), progress=progress)
         except ConvergenceError as error:
@@ -71,7 +72,7 @@ def run_fidelity_study(scene_name: str, out: Path, overrides=(), progress: bool 
                      "dofs": results[name]["dofs"],
                      "max_error": math.inf if name in failures else max(errors.values()),
                      **{f"error_{k}": v for k, v in errors.items()},
-                     **{k: results[name][k] for k in KEYS},
+                     **{k: results[name].get(k, math.nan) for k in (*KEYS, *TIME_COLUMNS)},
                      "failure": failures.get(name, "")})
     if comm.rank == 0:
         _write(rows, out, scene_name)
@@ -97,9 +98,16 @@ def pick(rows: list[dict], tol: float) -> tuple[str, str]:
 
 
 def read_table(path: Path) -> list[dict]:
+    """The rows of a fidelity.csv; InputError for a table without today's key outputs (one
+    written before they were named by quantity, unit, place and time)."""
     with Path(path).open() as f:
         rows = list(csv.DictReader(f))
-    return [{k: (v if k in ("model", "failure") else float(v)) for k, v in r.items()}
+    missing = [f"error_{k}" for k in KEYS if rows and f"error_{k}" not in rows[0]]
+    if not rows or missing:
+        raise InputError(str(path), "is not a fidelity table with today's key outputs (no "
+                         + (", ".join(missing[:2]) + ", ..." if missing else "rows") + ").",
+                         "run `fingertip study fidelity` again for this scene.")
+    return [{k: (v if k in ("model", "failure") else float(v or "nan")) for k, v in r.items()}
             for r in rows]
 
 
@@ -114,8 +122,10 @@ def _write(rows, out: Path, scene_name: str):
         writer.writeheader()
         writer.writerows(rows)
     lines = [f"Fidelity ladder for `{scene_name}`: relative error of each key output against "
-             "the full model.", "",
-             "| model | wall time (s) | " + " | ".join(KEYS) + " | max |",
+             "the full model. Key outputs: " + ", ".join(
+                 f"{k.short} = `{k.column}`" for k in KEY_OUTPUTS) + ".", "",
+             "| model | wall time (s) | " + " | ".join(k.short for k in KEY_OUTPUTS)
+             + " | max |",
              "| --- | ---: | " + " | ".join("---:" for _ in KEYS) + " | ---: |"]
     for r in rows:
         if r.get("failure"):
