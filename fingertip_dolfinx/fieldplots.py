@@ -33,6 +33,7 @@ from dolfinx import fem, plot
 from dolfinx import mesh as dmesh
 from matplotlib.ticker import MaxNLocator
 
+from .figures import SMALLER_UNITS, display_unit, unit_of
 from .indenters import Indenter
 
 # Off-screen rendering needs no display: VTK first tries X, fails, says so on stderr at every
@@ -415,8 +416,8 @@ def _frame(renderer, window, aspect: float, top: float):
 def _render(section_grid, field_grid, scale: ColourScale, indenters, window, path: Path, *,
             label, title, cmap):
     """Draw back to front (grey section, field, indenters, outlines, marked extremes) and
-    write the PNG; the field in the unit `_display_unit` chooses."""
-    factor, label = _display_unit(original := label, max(abs(scale.low), abs(scale.high)))
+    write the PNG; the field in the unit `figures.display_unit` chooses."""
+    factor, label = display_unit(original := label, max(abs(scale.low), abs(scale.high)))
     field_grid["shown"] = field_grid["field"] * factor
     shown = _shown_range((factor * scale.low, factor * scale.high))
     plotter = pv.Plotter(off_screen=True, window_size=list(WINDOW_SIZE), shape=(2, 1),
@@ -447,44 +448,13 @@ def _render(section_grid, field_grid, scale: ColourScale, indenters, window, pat
         plotter.close()
 
 
-#: Units shown in a smaller unit when the values are small: (factor, name), largest first; a
-#: unit is used down to a tenth of it (0.25 MPa, 0.8 kPa, 33 Pa; 0.5 mm, 40 µm).
-SMALLER_UNITS = {"MPa": ((1.0, "MPa"), (1e3, "kPa"), (1e6, "Pa")),
-                 "mm": ((1.0, "mm"), (1e3, "µm"))}
-
-
-def _unit_of(label: str) -> str:
-    """The unit in a label's last parentheses ("sed (MPa)" -> "MPa"), "" if none."""
-    if not label.endswith(")") or "(" not in label:
-        return ""
-    return label[label.rindex("(") + 1:-1]
-
-
-def _display_unit(label: str, peak: float) -> tuple[float, str]:
-    """(factor, label) to show values up to `peak` (label's unit) with short ticks: the unit of
-    SMALLER_UNITS that puts `peak` at 0.1 or more, else a power of 1000 in the label."""
-    unit = _unit_of(label)
-    if peak == 0 or not np.isfinite(peak) or peak >= 0.1:
-        return 1.0, label
-    stem = label[: len(label) - len(unit) - 2].rstrip()
-    for factor, name in SMALLER_UNITS.get(unit, ()):
-        if factor * peak >= 0.1:
-            return factor, f"{stem} ({name})"
-    if unit in SMALLER_UNITS:
-        factor, name = SMALLER_UNITS[unit][-1]
-        return factor, f"{stem} ({name})"
-    power = 3 * int(np.floor(np.log10(10 * peak) / 3))  # 3e-5 -> 1e-6: ticks up to 30
-    dimension = "" if unit in ("", "-") else f" {unit}"
-    return 10.0**-power, f"{stem} (x 1e{power}{dimension})"
-
-
 def _value_unit(original: str, shown: str, factor: float) -> tuple[float, str]:
     """(factor, unit) to write a value in: the shown unit if it is a named one (kPa, µm),
     else the original unit, unscaled (a strain: "-0.325", "-3.25e-04")."""
-    unit = _unit_of(shown)
+    unit = unit_of(shown)
     if any(unit == name for units in SMALLER_UNITS.values() for _, name in units):
         return factor, unit
-    unit = _unit_of(original)
+    unit = unit_of(original)
     return 1.0, "" if unit == "-" else unit
 
 

@@ -245,8 +245,8 @@ def run_frequency_response(scene: Scene, out: str | Path, *, frequencies=None,
         plot_impedance(rows, out / "impedance.png", scene.name)
         plot_receptor_transfer(site_rows, out, population, scene.name)
         plot_threshold_curves(curves, out / "thresholds.png", title=(
-            f"{scene.name}, {options.state} at {pressing.depth:g} mm: most sensitive site; "
-            "shaded: published best bands"))
+            f"{scene.name}, {options.state} at {pressing.depth:g} mm: most sensitive site"),
+            note=summary["resonance_warning"])
     comm.barrier()  # every file is written when any rank returns (rank 0 draws)
     return summary
 
@@ -479,8 +479,12 @@ def plot_impedance(rows: list[dict], path: Path, title: str = "") -> Path:
 def plot_receptor_transfer(rows: list[dict], out: Path, population,
                            title: str = "") -> list[Path]:
     """Per receptor class: the amplitude of the stimulus quantity its model reads, per µm of
-    drive, over the sites' position x and the frequency (log colour scale). `rows`: those of
+    drive, over the sites' position x and the frequency (log colour scale). Each computed
+    (site, frequency) is one cell, its edges halfway between neighbours (geometric means in
+    frequency, on the log axis), so no cell is wider than its sample's share. `rows`: those of
     receptor_transfer.csv."""
+    from matplotlib.colors import LogNorm
+
     data = {k: np.array([r[k] for r in rows]) for k in TRANSFER_COLUMNS}
     paths = []
     for cls in CLASSES:
@@ -492,16 +496,33 @@ def plot_receptor_transfer(rows: list[dict], out: Path, population,
         ax = fig.subplots()
         quantity = population[cls].quantity
         z = np.full((len(f), len(x)), np.nan)
-        fi = np.searchsorted(f, data["frequency_Hz"][mine])
-        xi = np.searchsorted(x, data["x_mm"][mine])
-        z[fi, xi] = data[f"{quantity}_abs_per_um"][mine]
-        mesh = ax.pcolormesh(x, f, np.log10(np.abs(z) + 1e-300), shading="nearest")
+        z[np.searchsorted(f, data["frequency_Hz"][mine]),
+          np.searchsorted(x, data["x_mm"][mine])] = data[f"{quantity}_abs_per_um"][mine]
+        z = np.ma.masked_where(~(z > 0), z)  # a zero amplitude has no colour on a log scale
+        mesh = ax.pcolormesh(_edges(x, log=False), _edges(f, log=True), z,
+                             norm=LogNorm(vmin=z.min(), vmax=z.max()), shading="flat")
         ax.set_yscale("log")
         ax.set_xlabel("x of the site (mm)")
-        ax.set_ylabel("frequency (Hz)")
-        ax.set_title(f"{title}: {cls}, {quantity} per µm of drive")
-        fig.colorbar(mesh, ax=ax, label=f"log10 amplitude ({QUANTITIES[quantity][2]}/µm)")
+        ax.set_ylabel("vibration frequency (Hz)")
+        depths = ", ".join(f"{d:g}" for d in np.unique(data["depth_mm"][mine]))
+        name = quantity.replace("_", " ")
+        ax.set_title(f"{title}: {cls} sites ({depths} mm deep), {name} per µm of drive"
+                     if title else f"{cls} sites ({depths} mm deep), {name} per µm of drive",
+                     fontsize=9)
+        fig.colorbar(mesh, ax=ax, label=f"{name} amplitude ({QUANTITIES[quantity][2]} per µm)")
         fig.tight_layout()
         paths.append(out / f"receptor_transfer_{cls}.png")
         fig.savefig(paths[-1], dpi=120)
     return paths
+
+
+def _edges(centres: np.ndarray, log: bool) -> np.ndarray:
+    """Cell edges around sorted sample positions: midpoints (geometric with `log`), the outer
+    edges as far out as the nearest inner one; one sample: a factor 1.2 (or ±0.5) around."""
+    c = np.log(centres) if log else np.asarray(centres, dtype=float)
+    if len(c) == 1:
+        e = c[0] + np.array([-0.5, 0.5]) * (np.log(1.2) if log else 1.0)
+    else:
+        mid = 0.5 * (c[1:] + c[:-1])
+        e = np.concatenate([[2 * c[0] - mid[0]], mid, [2 * c[-1] - mid[-1]]])
+    return np.exp(e) if log else e
