@@ -266,7 +266,8 @@ def plot_spacing_profiles(runs: dict[float, dict], path: Path, time_s: float, de
     for ax in axes[1]:
         ax.set_xlabel("x (mm); ticks on the axis: bar centres")
         ax.set_xlim(-4.0, 4.0)
-    axes[0, 0].legend(fontsize=8)
+    handles, labels = axes[0, 0].get_legend_handles_labels()  # beside the panels: off the data
+    fig.legend(handles, labels, loc="center right", fontsize=8)
     fig.suptitle(f"{title} at depth {depth_mm:g} mm, t = {time_s:g} s")
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0, 0.88, 1))
     fig.savefig(path, dpi=150)
