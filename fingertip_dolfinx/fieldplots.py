@@ -417,7 +417,8 @@ def _render(section_grid, field_grid, scale: ColourScale, indenters, window, pat
             label, title, cmap):
     """Draw back to front (grey section, field, indenters, outlines, marked extremes) and
     write the PNG; the field in the unit `figures.display_unit` chooses."""
-    factor, label = display_unit(original := label, max(abs(scale.low), abs(scale.high)))
+    original = label
+    factor, label = display_unit(label, max(abs(scale.low), abs(scale.high)))
     field_grid["shown"] = field_grid["field"] * factor
     shown = _shown_range((factor * scale.low, factor * scale.high))
     plotter = pv.Plotter(off_screen=True, window_size=list(WINDOW_SIZE), shape=(2, 1),
@@ -433,7 +434,7 @@ def _render(section_grid, field_grid, scale: ColourScale, indenters, window, pat
         if indenters:
             draw.add(_indenter_shapes(indenters, window), color=INDENTER_GREY)
         draw.add(_outline(section_grid), color="black", line_width=1.5)
-        notes = _mark_extremes(plotter, draw, scale.extremes, *_value_unit(original, label, factor))
+        notes = _mark_extremes(plotter, draw, scale.extremes, original)
         if title:
             plotter.add_text(title, position="upper_edge", font_size=14, color="black")
         aspect = WINDOW_SIZE[0] / (WINDOW_SIZE[1] * (1 - BAR_SHARE))
@@ -448,26 +449,27 @@ def _render(section_grid, field_grid, scale: ColourScale, indenters, window, pat
         plotter.close()
 
 
-def _value_unit(original: str, shown: str, factor: float) -> tuple[float, str]:
-    """(factor, unit) to write a value in: the shown unit if it is a named one (kPa, µm),
-    else the original unit, unscaled (a strain: "-0.325", "-3.25e-04")."""
-    unit = unit_of(shown)
-    if any(unit == name for units in SMALLER_UNITS.values() for _, name in units):
-        return factor, unit
-    unit = unit_of(original)
-    return 1.0, "" if unit == "-" else unit
+def _value_text(label: str, value: float) -> str:
+    """A value of the field labelled `label` in its own readable unit ("20.1 kPa", "268 Pa");
+    a strain as it is ("-0.325", "-3.25e-04")."""
+    unit = unit_of(label)
+    if unit in SMALLER_UNITS:
+        factor, shown = display_unit(label, abs(value))
+        return f"{_number(factor * value)} {unit_of(shown)}"
+    return f"{_number(value)} {'' if unit == '-' else unit}".rstrip()
 
 
-def _mark_extremes(plotter, draw, extremes: list[Extreme], factor: float, unit: str) -> list:
+def _mark_extremes(plotter, draw, extremes: list[Extreme], label: str) -> list:
     """A marker and a label "max 33 Pa" on the map at each extreme beyond the colour range;
     returns the captions for the colour bar ("max 33 Pa at (0.21, -6.80) mm")."""
     notes = []
     (x0, x1), (y0, y1) = draw.window
     offset = 0.015 * max(x1 - x0, y1 - y0)  # the label up and right of the marker
     for e in extremes:
-        value = f"{e.kind} {_number(factor * e.value)} {unit}".rstrip()
-        for radii, colour in (((0.5, 1.3), "white"), ((0.7, 1.1), "black"), ((0.0, 0.25), "black")):
-            draw.z += draw.dz  # a ring with a dot, outlined in white: seen on any colour
+        value = f"{e.kind} {_value_text(label, e.value)}"
+        rings = (((0.5, 1.3), "white"), ((0.7, 1.1), "black"), ((0.0, 0.25), "black"))
+        for radii, colour in rings:  # a ring with a dot, outlined in white: seen on any colour
+            draw.z += draw.dz
             plotter.add_mesh(pv.Disc(center=(e.x, e.y, draw.z), inner=radii[0] * offset / 2,
                                      outer=radii[1] * offset / 2, c_res=48), color=colour,
                              lighting=False)
