@@ -133,6 +133,19 @@ def display_unit(label: str, peak: float) -> tuple[float, str]:
     return 10.0**-power, f"{stem} (x 1e{power}{dimension})"
 
 
+def plain_log_ticks(ax, which: str = "x") -> None:
+    """Tick labels of a log axis as plain numbers (40, 50, 1000, not 4×10¹); when it spans under
+    1.5 decades, where few powers of ten fall, the minor ticks are labelled too. Call after
+    plotting (the span is the axis's view)."""
+    from matplotlib.ticker import FuncFormatter
+
+    low, high = ax.get_xlim() if which == "x" else ax.get_ylim()
+    axis = ax.xaxis if which == "x" else ax.yaxis
+    plain = FuncFormatter(lambda v, _: f"{v:g}")
+    axis.set_major_formatter(plain)
+    axis.set_minor_formatter(plain if high / low < 30 else FuncFormatter(lambda v, _: ""))
+
+
 def _scaled(values, label: str) -> tuple[np.ndarray, str]:
     """`values` in the unit display_unit chooses for them, and its label."""
     values = np.asarray(values, dtype=float)

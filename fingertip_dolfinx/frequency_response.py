@@ -52,6 +52,7 @@ from mpi4py import MPI
 from ufl.algorithms import expand_derivatives
 
 from .errors import InputError
+from .figures import plain_log_ticks
 from .harmonic import (
     HarmonicOptions,
     HarmonicSolver,
@@ -453,6 +454,7 @@ def plot_impedance(rows: list[dict], path: Path, title: str = "") -> Path:
     bottom.set_ylabel("phase of Z (°)")
     bottom.set_yticks([-90, -45, 0, 45, 90])
     bottom.set_xlabel("frequency (Hz)")
+    plain_log_ticks(bottom, "x")
     styles = {"probe_held": ("tab:red", "--", "|K| max (probe held)"),
               "force_driven": ("tab:purple", ":", "|K| min (force driven)")}
     for kind, (colour, line, label) in styles.items():
@@ -502,6 +504,7 @@ def plot_receptor_transfer(rows: list[dict], out: Path, population,
         mesh = ax.pcolormesh(_edges(x, log=False), _edges(f, log=True), z,
                              norm=LogNorm(vmin=z.min(), vmax=z.max()), shading="flat")
         ax.set_yscale("log")
+        plain_log_ticks(ax, "y")
         ax.set_xlabel("x of the site (mm)")
         ax.set_ylabel("vibration frequency (Hz)")
         depths = ", ".join(f"{d:g}" for d in np.unique(data["depth_mm"][mine]))

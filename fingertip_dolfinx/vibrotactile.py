@@ -513,6 +513,8 @@ def plot_threshold_curves(curves, path, *, published=PUBLISHED, title: str = "",
     `curves`: VibrationThresholds, one per class."""
     from matplotlib.figure import Figure
 
+    from .figures import plain_log_ticks
+
     colours = {"SA1": "tab:blue", "RA": "tab:green", "PC": "tab:red",
                "psychophysics": "0.5"}
     fig = Figure(figsize=(7.2, 7.0))
@@ -539,6 +541,7 @@ def plot_threshold_curves(curves, path, *, published=PUBLISHED, title: str = "",
         handles.append(_published_handle(p, c))
     ax.set_xlabel("vibration frequency (Hz)")
     ax.set_ylabel("probe amplitude at threshold (µm)")
+    plain_log_ticks(ax, "x")
     ax.grid(alpha=0.3, which="both")
     ax.set_title(title or "afferent thresholds (most sensitive site)", fontsize=9)
     fig.legend(handles=handles, loc="lower center", bbox_to_anchor=(0.5, 0.025), fontsize=7,
