@@ -254,7 +254,7 @@ def test_run_writes_the_frequency_route(shared_tmp_path, capsys):
     assert len(sites) % 3 == 0 and {s["class"] for s in sites} == {"SA1", "RA", "PC"}
     summary = json.loads((out / "summary.json").read_text())
     assert summary["pressed_state"]["kind"] == "held" and summary["dofs"] > 0
-    _check_resonances(summary, rows, capsys.readouterr().out)
+    _check_resonances(summary, rows, capsys.readouterr().err)  # the console line: stderr
     assert (out / "impedance.png").exists() and (out / "receptor_transfer_PC.png").exists()
     _check_thresholds(out, sites)
     assert main(["run", "vibrotactile", "--frequencies", "0:1:3", "--out", str(out)]) == 2
