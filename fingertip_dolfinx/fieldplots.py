@@ -601,20 +601,42 @@ def plot_tagged_mesh3d(fm, path: Path, title: str | None = None) -> Path | None:
     plotter.add_mesh(surface, scalars="colour", rgb=True, show_edges=True, line_width=0.3)
     plotter.view_vector((1.0, -0.35, 0.7), viewup=(0, 1, 0))  # the side (x > 0), pulp, tip
     present = {n for n, t in FACET_TAGS_3D.items() if t in set(facet_values[exposed])}
-    plotter.add_legend([[n, colours[n]] for n in FACET_TAGS_3D if n in present], bcolor="white",
-                       size=(0.22, 0.22), loc="lower left")
+    _swatch_legend(plotter, [(n, colours[n]) for n in FACET_TAGS_3D if n in present],
+                   size=(0.22, 0.22))
     plotter.add_text(title or "3D fingertip: boundary tags", font_size=11, position="upper_right")
     plotter.subplot(0, 1)
     plotter.add_mesh(section, scalars="colour", rgb=True, show_edges=True, line_width=0.3,
                      lighting=False)
     plotter.view_vector((-1.0, 0.0, 0.0), viewup=(0, 1, 0))
-    plotter.add_legend([[n, REGION_COLOURS[n]] for n in CELL_TAGS], bcolor="white",
-                       size=(0.18, 0.16), loc="lower left")
+    _swatch_legend(plotter, [(n, REGION_COLOURS[n]) for n in CELL_TAGS], size=(0.18, 0.16))
     plotter.add_text("regions, cut at x = 0 (z: proximal cut -> tip)", font_size=11,
                      position="upper_right")
     plotter.screenshot(str(path))
     plotter.close()
     return Path(path)
+
+
+def _swatch_legend(plotter, entries, size: tuple[float, float]) -> None:
+    """A legend at the lower left of the current renderer: a colour square and the name in
+    black per entry (pyvista's legend writes each name in its own colour: pale ones, the bone's
+    grey or the nail's blue, are unreadable on white)."""
+    from matplotlib.colors import to_rgb
+    from vtkmodules.vtkRenderingAnnotation import vtkLegendBoxActor
+
+    legend = vtkLegendBoxActor()
+    legend.SetNumberOfEntries(len(entries))
+    for i, (name, colour) in enumerate(entries):
+        square = pv.Rectangle(np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0]], dtype=float))
+        square.cell_data["rgb"] = np.tile(np.round(255 * np.array(to_rgb(colour))),
+                                          (square.n_cells, 1)).astype(np.uint8)
+        square.cell_data.active_scalars_name = "rgb"  # the square's colour; the text black
+        legend.SetEntry(i, square, name, [0.0, 0.0, 0.0])
+    legend.UseBackgroundOn()
+    legend.SetBackgroundColor(1.0, 1.0, 1.0)
+    legend.GetPositionCoordinate().SetCoordinateSystemToNormalizedViewport()
+    legend.GetPositionCoordinate().SetValue(0.02, 0.02)
+    legend.GetPosition2Coordinate().SetValue(*size)
+    plotter.renderer.AddActor(legend)
 
 
 def _gather_entities(fm, tags) -> tuple[np.ndarray, np.ndarray]:
