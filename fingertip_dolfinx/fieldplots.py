@@ -6,6 +6,11 @@ strain, ...), with thin black outlines of the regions and of the outer boundary,
 indenters in place as filled grey shapes: the picture of Fig. 4 of Wu et al. (2004), the
 deformed fingertip cross-section with the wedge pressed into the pulp.
 
+Colours span the field's full range unless `saturate` is given and the field has an outlier
+(a near-singular peak at a sharp tip); then they stop at an area quantile, and the picture
+marks and states the true extreme (`ColourScale`, `colour_scale`). Small values are shown in a
+smaller unit (kPa, Pa, µm: `figures.display_unit`).
+
 Everything is drawn with linear cells at the mesh's geometry nodes: a P2 field or displacement
 is shown by its values at the vertices. Collective: every rank sends the cells it owns to rank
 0, which renders alone and writes the PNG.

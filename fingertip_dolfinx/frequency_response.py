@@ -18,10 +18,11 @@ r"""The frequency route of a scene: pressed state, then the small-signal respons
    receptors.csv, the stimulus quantities at the sites in the pressed state): thresholds.csv,
    one row per class, site and frequency, with I0 (absolute) and I1 (1:1 entrainment) in µm of
    probe displacement (NaN where s0 alone fires, inf where the site cannot follow);
-6. summary.json (pressed state, mesh, dofs, timings, the resonances seen: `resonances`) and
-   the figures
-   impedance.png (Bode plot of Z), receptor_transfer_<class>.png (amplitude over position
-   and frequency) and thresholds.png (the most sensitive site's I0 and I1 per class, with the
+6. summary.json (pressed state, mesh, dofs, timings, the resonances the grid resolves,
+   `resonances`, and where it does not, the bands to refine: `resonance_warning`) and the
+   figures impedance.png (Bode plot of Z at the computed frequencies, resonances and
+   unresolved bands marked), receptor_transfer_<class>.png (amplitude over position and
+   frequency) and thresholds.png (the most sensitive site's I0 and I1 per class, with the
    verified published bands, `vibrotactile.PUBLISHED`).
 
 **Transfer functions** (`SiteTransfer`). Each quantity q is a nonlinear function of the state;
