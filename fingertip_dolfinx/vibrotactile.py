@@ -501,7 +501,7 @@ def _published_handle(p: Published, colour):
 
 
 def plot_threshold_curves(curves, path, *, published=PUBLISHED, title: str = "",
-                          note: str = "") -> None:
+                          note: str = "") -> list[str]:
     """Threshold vs frequency, log-log, amplitudes in µm: per class (colour) the most
     sensitive site's absolute threshold I0 (filled circles) and 1:1 entrainment threshold I1
     (open triangles), at the computed frequencies only (markers: a line would pass across
@@ -509,8 +509,8 @@ def plot_threshold_curves(curves, path, *, published=PUBLISHED, title: str = "",
     spans (hatched for the psychophysical one) and published threshold amplitudes as bars
     over their band, each named in the legend below the axes. A missing marker: no threshold
     there (the pressed state alone fires the site, or it cannot follow 1:1). `note`: a
-    warning written in red under the legend (the frequency route's resolution warning).
-    `curves`: VibrationThresholds, one per class."""
+    warning written in red above the axes (the frequency route's resolution warning).
+    `curves`: VibrationThresholds, one per class. Returns the legend's entries."""
     from matplotlib.figure import Figure
 
     from .figures import plain_log_ticks
@@ -553,3 +553,4 @@ def plot_threshold_curves(curves, path, *, published=PUBLISHED, title: str = "",
         fig.text(0.5, 0.975, note, ha="center", va="top", fontsize=7, color="tab:red")
     fig.tight_layout(rect=(0, 0.19, 1, 0.96 if note else 1))
     fig.savefig(path, dpi=150)
+    return [h.get_label() for h in handles]
