@@ -359,12 +359,15 @@ def _run_frequency_route(args, scene) -> int:
                              f"drop {flag} (or --frequencies).")
     summary = run_frequency_response(scene, args.out, frequencies=args.frequencies,
                                      state=args.state, progress=not args.quiet)
+    # only the peaks the grid resolves are named; the others as bands to refine
     peaks = ", ".join(f"{f:.3g}" for f in summary["resonances_Hz"]["probe_held"]) or "none"
+    warning = summary["resonance_warning"]
     _rank0_print(
         f"{scene.name}: {summary['dofs']} dofs, {len(summary['harmonic']['frequencies_Hz'])} "
         f"frequencies in {summary['wall_time_s']:.1f} s (pressed state "
-        f"{summary['pressed_state']['wall_time_s']:.1f} s); resonances seen (|K| maxima, "
-        f"probe held): {peaks} Hz; results in {args.out}")
+        f"{summary['pressed_state']['wall_time_s']:.1f} s); resonances resolved (|K| maxima, "
+        f"probe held): {peaks}{' Hz' if peaks != 'none' else ''}"
+        f"{'; ' + warning if warning else ''}; results in {args.out}")
     return 0
 
 

@@ -6,6 +6,11 @@ strain, ...), with thin black outlines of the regions and of the outer boundary,
 indenters in place as filled grey shapes: the picture of Fig. 4 of Wu et al. (2004), the
 deformed fingertip cross-section with the wedge pressed into the pulp.
 
+Colours span the field's full range unless `saturate` is given and the field has an outlier
+(a near-singular peak at a sharp tip); then they stop at an area quantile, and the picture
+marks and states the true extreme (`ColourScale`, `colour_scale`). Small values are shown in a
+smaller unit (kPa, Pa, µm: `figures.display_unit`).
+
 Everything is drawn with linear cells at the mesh's geometry nodes: a P2 field or displacement
 is shown by its values at the vertices. Collective: every rank sends the cells it owns to rank
 0, which renders alone and writes the PNG.
@@ -33,6 +38,7 @@ from dolfinx import fem, plot
 from dolfinx import mesh as dmesh
 from matplotlib.ticker import MaxNLocator
 
+from .figures import SMALLER_UNITS, display_unit, unit_of
 from .indenters import Indenter
 
 # Off-screen rendering needs no display: VTK first tries X, fails, says so on stderr at every
@@ -92,7 +98,7 @@ def plot_field(
     field_mesh_nodes: np.ndarray | None = None,
     cmap: str = "viridis",
     saturate: float | None = None,
-) -> tuple[float, float] | None:
+) -> ColourScale | None:
     """Draw `field` on the section deformed by `u` and write a PNG to `path`. Collective.
 
     msh, cell_tags: the 2D mesh (triangles or quadrilaterals, affine geometry) and its region
@@ -105,33 +111,99 @@ def plot_field(
           `dolfinx.mesh.create_submesh` (submesh geometry node -> `msh` geometry node); the
           rest of the section is drawn in light grey;
         - a numpy array of values at `msh`'s local geometry nodes (`msh.geometry.x` rows).
-    label: colour-bar title, with units ("u2 (mm)", "p (MPa)").
+    label: colour-bar title, with units ("u2 (mm)", "p (MPa)"); MPa and mm are shown in a
+        smaller unit (kPa, Pa, µm) when the values are small, other units with a power of 10.
     indenters: (Indenter, y_tip) pairs, y_tip in mm; drawn filled grey where φ < 0.
     window: ((xmin, xmax), (ymin, ymax)) in mm; default: the deformed section and the top of
         the indenters.
     cmap: a matplotlib colour map name.
-    saturate: if given (e.g. 0.99), the colour range spans the values between the quantiles
-        1 − saturate and saturate, and values beyond take the end colours (the colour bar
-        says so): fields with a near-singular peak at a sharp tip stay readable elsewhere.
+    saturate: if given (e.g. 0.995), the colour range may stop at the area quantiles
+        1 − saturate and saturate, so that a near-singular peak at a sharp tip does not turn
+        the rest of the section into one colour; an end is cut only where the values beyond
+        it would take more than SATURATION_GAIN − 1 times the colours of the rest
+        (`ColourScale`). Where colours saturate, the true extreme is marked on the map (a
+        marker and its value), and the colour bar says so (an end swatch, and the value and
+        place of the extreme in its caption).
 
-    Returns the colour range (min, max of the drawn values, or the quantiles) on rank 0, None
-    on other ranks.
+    Returns the `ColourScale` on rank 0, None on other ranks.
     """
     section, own = _pieces(msh, cell_tags, u, field, field_mesh_nodes)
     section_grid = _gather(msh.comm, section)
     field_grid = section_grid if own is None else _gather(msh.comm, own)
     if msh.comm.rank != 0:
         return None
-    values = field_grid.point_data.get("field", field_grid.cell_data.get("field"))
-    clim = (float(np.nanmin(values)), float(np.nanmax(values)))
-    if saturate is not None:
-        clim = _area_quantiles(field_grid, (1 - saturate, saturate))
-        label = f"{label}; colours saturate outside {saturate:.1%} of the area"
+    scale = colour_scale(field_grid, saturate)
     if window is None:
         window = _default_window(section_grid.bounds, indenters)
-    _render(section_grid, field_grid, clim, indenters, window, Path(path),
+    _render(section_grid, field_grid, scale, indenters, window, Path(path),
             label=label, title=title, cmap=cmap)
-    return clim
+    return scale
+
+
+#: An end of the colour range is cut at its area quantile only if the full range is more than
+#: this many times the range the cut leaves: below it, the full range is readable as it is.
+SATURATION_GAIN = 2.0
+
+
+@dataclass
+class Extreme:
+    """A value of the drawn field beyond the colour range: its value and where it is drawn
+    (x, y in mm, on the deformed section)."""
+
+    kind: str  # "max" or "min"
+    value: float
+    x: float
+    y: float
+
+
+@dataclass
+class ColourScale:
+    """The colour range of a field picture and the extremes beyond it (marked on the map).
+
+    low, high: the colour map's range (field units); `extremes`: the drawn field's max (min)
+    when it lies above `high` (below `low`), else none. So the picture states the field's true
+    range: [min, max] = [extreme "min" or low, extreme "max" or high].
+    """
+
+    low: float
+    high: float
+    extremes: list[Extreme] = dataclass_field(default_factory=list)
+
+    @property
+    def range(self) -> tuple[float, float]:
+        return self.low, self.high
+
+    def shown(self, kind: str) -> float:
+        """The field's max ("max") or min ("min") as the picture states it."""
+        marked = [e.value for e in self.extremes if e.kind == kind]
+        return marked[0] if marked else (self.high if kind == "max" else self.low)
+
+
+def colour_scale(grid: pv.UnstructuredGrid, saturate: float | None) -> ColourScale:
+    """The colour range of `grid`'s field (see plot_field's `saturate`) and the extremes that
+    lie beyond it, with the place where each is drawn."""
+    values, points = _drawn_values(grid)
+    low, high = float(np.nanmin(values)), float(np.nanmax(values))
+    if saturate is None or high <= low:
+        return ColourScale(low, high)
+    q_low, q_high = _area_quantiles(grid, (1 - saturate, saturate))
+    cut_low = (q_high - low) > SATURATION_GAIN * (q_high - q_low)
+    cut_high = (high - q_low) > SATURATION_GAIN * (q_high - q_low)
+    scale = ColourScale(q_low if cut_low else low, q_high if cut_high else high)
+    for kind, cut, index in (("min", cut_low, np.nanargmin(values)),
+                             ("max", cut_high, np.nanargmax(values))):
+        if cut:
+            x, y = points[index, :2]
+            scale.extremes.append(Extreme(kind, float(values[index]), float(x), float(y)))
+    return scale
+
+
+def _drawn_values(grid: pv.UnstructuredGrid) -> tuple[np.ndarray, np.ndarray]:
+    """The field's values as drawn and where: at the nodes (point data) or the cell centres."""
+    if "field" in grid.point_data:
+        return np.asarray(grid.point_data["field"], dtype=float), np.asarray(grid.points)
+    return (np.asarray(grid.cell_data["field"], dtype=float),
+            np.asarray(grid.cell_centers().points))
 
 
 # --- data: values at the geometry nodes, one piece per rank -------------------------------------
@@ -346,9 +418,14 @@ def _frame(renderer, window, aspect: float, top: float):
     return half_w, half_h
 
 
-def _render(section_grid, field_grid, clim, indenters, window, path: Path, *, label, title,
-            cmap):
-    """Draw back to front (grey section, field, indenters, outlines) and write the PNG."""
+def _render(section_grid, field_grid, scale: ColourScale, indenters, window, path: Path, *,
+            label, title, cmap):
+    """Draw back to front (grey section, field, indenters, outlines, marked extremes) and
+    write the PNG; the field in the unit `figures.display_unit` chooses."""
+    original = label
+    factor, label = display_unit(label, max(abs(scale.low), abs(scale.high)))
+    field_grid["shown"] = field_grid["field"] * factor
+    shown = _shown_range((factor * scale.low, factor * scale.high))
     plotter = pv.Plotter(off_screen=True, window_size=list(WINDOW_SIZE), shape=(2, 1),
                          row_weights=[1 - BAR_SHARE, BAR_SHARE], border=False)
     try:
@@ -357,11 +434,12 @@ def _render(section_grid, field_grid, clim, indenters, window, path: Path, *, la
         draw = _Layers(plotter, window)
         if field_grid is not section_grid:
             draw.add(section_grid, color=BODY_GREY)
-        field = draw.add(field_grid, scalars="field", cmap=cmap, clim=_shown_range(clim),
+        field = draw.add(field_grid, scalars="shown", cmap=cmap, clim=shown,
                          show_scalar_bar=False)
         if indenters:
             draw.add(_indenter_shapes(indenters, window), color=INDENTER_GREY)
         draw.add(_outline(section_grid), color="black", line_width=1.5)
+        notes = _mark_extremes(plotter, draw, scale.extremes, original)
         if title:
             plotter.add_text(title, position="upper_edge", font_size=14, color="black")
         aspect = WINDOW_SIZE[0] / (WINDOW_SIZE[1] * (1 - BAR_SHARE))
@@ -370,10 +448,47 @@ def _render(section_grid, field_grid, clim, indenters, window, path: Path, *, la
         plotter.subplot(1, 0)
         _scale_bar(plotter, half_w, half_h * BAR_SHARE / (1 - BAR_SHARE))
         if field is not None:  # else no part of the field is in the window
-            _colour_bar(plotter, field.mapper, label, _shown_range(clim))
+            _colour_bar(plotter, field.mapper, label, shown, scale.extremes, notes)
         plotter.screenshot(str(path))
     finally:
         plotter.close()
+
+
+def _value_text(label: str, value: float) -> str:
+    """A value of the field labelled `label` in its own readable unit ("20.1 kPa", "268 Pa");
+    a strain as it is ("-0.325", "-3.25e-04")."""
+    unit = unit_of(label)
+    if unit in SMALLER_UNITS:
+        factor, shown = display_unit(label, abs(value))
+        return f"{_number(factor * value)} {unit_of(shown)}"
+    return f"{_number(value)} {'' if unit == '-' else unit}".rstrip()
+
+
+def _mark_extremes(plotter, draw, extremes: list[Extreme], label: str) -> list:
+    """A marker and a label "max 33 Pa" on the map at each extreme beyond the colour range;
+    returns the captions for the colour bar ("max 33 Pa at (0.21, -6.80) mm")."""
+    notes = []
+    (x0, x1), (y0, y1) = draw.window
+    offset = 0.015 * max(x1 - x0, y1 - y0)  # the label up and right of the marker
+    for e in extremes:
+        value = f"{e.kind} {_value_text(label, e.value)}"
+        rings = (((0.5, 1.3), "white"), ((0.7, 1.1), "black"), ((0.0, 0.25), "black"))
+        for radii, colour in rings:  # a ring with a dot, outlined in white: seen on any colour
+            draw.z += draw.dz
+            plotter.add_mesh(pv.Disc(center=(e.x, e.y, draw.z), inner=radii[0] * offset / 2,
+                                     outer=radii[1] * offset / 2, c_res=48), color=colour,
+                             lighting=False)
+        plotter.add_point_labels(np.array([[e.x + offset, e.y + offset, draw.z]]), [value],
+                                 font_size=22, text_color="black", show_points=False,
+                                 shape_color="white", shape_opacity=0.85, margin=4,
+                                 always_visible=True)
+        notes.append(f"{value} at ({e.x:.2f}, {e.y:.2f}) mm")
+    return notes
+
+
+def _number(value: float) -> str:
+    """Three significant digits (an exponent only below 1e-3 or from 1e4)."""
+    return f"{value:.3g}" if value == 0 or 1e-3 <= abs(value) < 1e4 else f"{value:.2e}"
 
 
 class _Layers:
@@ -436,19 +551,29 @@ def _ticks(low: float, high: float) -> tuple[np.ndarray, str]:
     return ticks, ("%.3g" if digits is None else f"%.{digits}f")  # %.3g: tiny values
 
 
-def _colour_bar(plotter, mapper, label: str, shown):
-    """A horizontal colour bar across the current (lower) renderer: bar, ticks, then `label`."""
+def _colour_bar(plotter, mapper, label: str, shown, extremes: list[Extreme], notes: list):
+    """A horizontal colour bar across the current (lower) renderer: bar, ticks, then `label`;
+    an end swatch where colours saturate, and the extremes beyond it in the caption."""
     ticks, fmt = _ticks(*shown)
+    kinds = {e.kind for e in extremes}
+    lut = mapper.lookup_table
+    if "max" in kinds:
+        lut.above_range_color = lut.GetTableValue(lut.GetNumberOfTableValues() - 1)[:3]
+    if "min" in kinds:
+        lut.below_range_color = lut.GetTableValue(0)[:3]
     bar = plotter.add_scalar_bar(
         title=label, mapper=mapper, vertical=False, position_x=0.17, position_y=0.4,
         width=0.7, height=0.58, color="black", label_font_size=22, fmt=fmt,
-        unconstrained_font_size=True)
+        unconstrained_font_size=True, above_label="" if "max" in kinds else None,
+        below_label="" if "min" in kinds else None)
     bar.SetTitle("")  # written below instead: VTK puts a horizontal bar's title on its labels
     bar.SetUseCustomLabels(True)
     bar.SetCustomLabels(pv.convert_array(ticks))
     bar.SetTextPositionToPrecedeScalarBar()  # the tick labels under the bar
     bar.SetBarRatio(0.45)
-    text = plotter.add_text(label, position=(0.52, 0.08), viewport=True, font_size=14,
+    caption = label if not notes else (
+        f"{label}; colours saturate beyond the bar: " + ", ".join(notes))
+    text = plotter.add_text(caption, position=(0.52, 0.08), viewport=True, font_size=14,
                             color="black")
     text.GetTextProperty().SetJustificationToCentered()
 
@@ -481,20 +606,42 @@ def plot_tagged_mesh3d(fm, path: Path, title: str | None = None) -> Path | None:
     plotter.add_mesh(surface, scalars="colour", rgb=True, show_edges=True, line_width=0.3)
     plotter.view_vector((1.0, -0.35, 0.7), viewup=(0, 1, 0))  # the side (x > 0), pulp, tip
     present = {n for n, t in FACET_TAGS_3D.items() if t in set(facet_values[exposed])}
-    plotter.add_legend([[n, colours[n]] for n in FACET_TAGS_3D if n in present], bcolor="white",
-                       size=(0.22, 0.22), loc="lower left")
+    _swatch_legend(plotter, [(n, colours[n]) for n in FACET_TAGS_3D if n in present],
+                   size=(0.22, 0.22))
     plotter.add_text(title or "3D fingertip: boundary tags", font_size=11, position="upper_right")
     plotter.subplot(0, 1)
     plotter.add_mesh(section, scalars="colour", rgb=True, show_edges=True, line_width=0.3,
                      lighting=False)
     plotter.view_vector((-1.0, 0.0, 0.0), viewup=(0, 1, 0))
-    plotter.add_legend([[n, REGION_COLOURS[n]] for n in CELL_TAGS], bcolor="white",
-                       size=(0.18, 0.16), loc="lower left")
+    _swatch_legend(plotter, [(n, REGION_COLOURS[n]) for n in CELL_TAGS], size=(0.18, 0.16))
     plotter.add_text("regions, cut at x = 0 (z: proximal cut -> tip)", font_size=11,
                      position="upper_right")
     plotter.screenshot(str(path))
     plotter.close()
     return Path(path)
+
+
+def _swatch_legend(plotter, entries, size: tuple[float, float]) -> None:
+    """A legend at the lower left of the current renderer: a colour square and the name in
+    black per entry (pyvista's legend writes each name in its own colour: pale ones, the bone's
+    grey or the nail's blue, are unreadable on white)."""
+    from matplotlib.colors import to_rgb
+    from vtkmodules.vtkRenderingAnnotation import vtkLegendBoxActor
+
+    legend = vtkLegendBoxActor()
+    legend.SetNumberOfEntries(len(entries))
+    for i, (name, colour) in enumerate(entries):
+        square = pv.Rectangle(np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0]], dtype=float))
+        square.cell_data["rgb"] = np.tile(np.round(255 * np.array(to_rgb(colour))),
+                                          (square.n_cells, 1)).astype(np.uint8)
+        square.cell_data.active_scalars_name = "rgb"  # the square's colour; the text black
+        legend.SetEntry(i, square, name, [0.0, 0.0, 0.0])
+    legend.UseBackgroundOn()
+    legend.SetBackgroundColor(1.0, 1.0, 1.0)
+    legend.GetPositionCoordinate().SetCoordinateSystemToNormalizedViewport()
+    legend.GetPositionCoordinate().SetValue(0.02, 0.02)
+    legend.GetPosition2Coordinate().SetValue(*size)
+    plotter.renderer.AddActor(legend)
 
 
 def _gather_entities(fm, tags) -> tuple[np.ndarray, np.ndarray]:

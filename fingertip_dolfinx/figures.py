@@ -1,18 +1,19 @@
-"""Pictures of meshes: the tagged regions and boundaries, drawn with matplotlib (no display)."""
+"""Figures drawn with matplotlib (no display): the tagged mesh, and the result curves (force,
+surface deflection, depth profiles); small values shown in a smaller unit (`display_unit`)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import matplotlib
+import numpy as np
+from dolfinx.mesh import CellType, entities_to_geometry
+from matplotlib.collections import LineCollection, PolyCollection
 from matplotlib.figure import Figure  # no pyplot: no backend is chosen, none is changed
-import numpy as np  # noqa: E402
-from dolfinx.mesh import CellType, entities_to_geometry  # noqa: E402
-from matplotlib.collections import LineCollection, PolyCollection  # noqa: E402
-from matplotlib.lines import Line2D  # noqa: E402
-from matplotlib.patches import Patch  # noqa: E402
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
 
-from .mesh import CELL_TAGS, FACET_TAGS, FingertipMesh  # noqa: E402
+from .mesh import CELL_TAGS, FACET_TAGS, FingertipMesh
 
 REGION_COLOURS = {
     "skin": "#e8a98c", "subcutaneous": "#f6e3a1", "bone": "#d9d9d9", "nail": "#a9cbe8",
@@ -98,6 +99,61 @@ def plot_tagged_mesh(fm: FingertipMesh, path: str | Path, title: str | None = No
 
 
 # --------------------------------------------------------------------------------------------
+# Units a reader can read: small values in a smaller unit (33 Pa, not 0.000033 MPa).
+
+#: Units shown in a smaller one when the values are small: (factor, name), largest first; a
+#: unit is used down to a tenth of it (0.25 MPa, 0.8 kPa, 33 Pa; 0.5 mm, 40 µm).
+SMALLER_UNITS = {"MPa": ((1.0, "MPa"), (1e3, "kPa"), (1e6, "Pa")),
+                 "mm": ((1.0, "mm"), (1e3, "µm")),
+                 "N/mm": ((1.0, "N/mm"), (1e3, "mN/mm")),
+                 "N": ((1.0, "N"), (1e3, "mN"))}
+
+
+def unit_of(label: str) -> str:
+    """The unit in a label's last parentheses ("sed (MPa)" -> "MPa"), "" if none."""
+    if not label.endswith(")") or "(" not in label:
+        return ""
+    return label[label.rindex("(") + 1:-1]
+
+
+def display_unit(label: str, peak: float) -> tuple[float, str]:
+    """(factor, label) to show values up to `peak` (in the label's unit) with short ticks: the
+    unit of SMALLER_UNITS that puts `peak` at 0.1 or more; for other units, below 0.01, a
+    power of 1000 written in the label ("e_max (x 1e-3)")."""
+    unit = unit_of(label)
+    named = SMALLER_UNITS.get(unit)
+    if not np.isfinite(peak) or peak == 0 or peak >= (0.1 if named else 0.01):
+        return 1.0, label
+    stem = label[: len(label) - len(unit) - 2].rstrip()
+    if named:
+        factor, name = next((u for u in named if u[0] * peak >= 0.1), named[-1])
+        return factor, f"{stem} ({name})"
+    power = 3 * int(np.floor(np.log10(10 * peak) / 3))  # 3e-5 -> 1e-6: ticks up to 30
+    dimension = "" if unit in ("", "-") else f" {unit}"
+    return 10.0**-power, f"{stem} (x 1e{power}{dimension})"
+
+
+def plain_log_ticks(ax, which: str = "x") -> None:
+    """Tick labels of a log axis as plain numbers (40, 50, 1000, not 4×10¹); when it spans under
+    1.5 decades, where few powers of ten fall, the minor ticks are labelled too. Call after
+    plotting (the span is the axis's view)."""
+    from matplotlib.ticker import FuncFormatter
+
+    low, high = ax.get_xlim() if which == "x" else ax.get_ylim()
+    axis = ax.xaxis if which == "x" else ax.yaxis
+    plain = FuncFormatter(lambda v, _: f"{v:g}")
+    axis.set_major_formatter(plain)
+    axis.set_minor_formatter(plain if high / low < 30 else FuncFormatter(lambda v, _: ""))
+
+
+def _scaled(values, label: str) -> tuple[np.ndarray, str]:
+    """`values` in the unit display_unit chooses for them, and its label."""
+    values = np.asarray(values, dtype=float)
+    factor, label = display_unit(label, float(np.nanmax(np.abs(values), initial=0.0)))
+    return factor * values, label
+
+
+# --------------------------------------------------------------------------------------------
 # Result figures, from the result files' columns (numpy arrays) on rank 0.
 
 
@@ -109,8 +165,9 @@ def plot_force_history(history: dict, path: Path, title: str = "") -> None:
     ax_d.plot(t, np.concatenate([[0.0], history["indenter_displacement_mm"]]), "k-")
     ax_d.set_ylabel("indentation (mm)")
     column, unit = force_column(history)
-    ax_f.plot(t, np.concatenate([[0.0], history[column]]), "o-", ms=3)
-    ax_f.set_ylabel(f"force ({unit})")
+    force, label = _scaled(np.concatenate([[0.0], history[column]]), f"force ({unit})")
+    ax_f.plot(t, force, "o-", ms=3)
+    ax_f.set_ylabel(label)
     ax_f.set_xlabel("time (s)")
     if t[-1] > 10:
         for ax in (ax_d, ax_f):
@@ -153,12 +210,14 @@ def plot_line_force(line: dict, path: Path, title: str = "") -> None:
     plane-strain section carries where the finger is long and straight."""
     fig = Figure(figsize=(6.4, 4.0))
     ax = fig.subplots()
+    factor, label = display_unit("force per unit length (N/mm)", float(
+        np.nanmax(np.abs(line["force_per_length_N_per_mm"]), initial=0.0)))
     for t in np.unique(line["time_s"]):
         rows = line["time_s"] == t
-        ax.step(line["z_mm"][rows], line["force_per_length_N_per_mm"][rows], where="mid",
-                label=f"t = {t:g} s")
+        ax.step(line["z_mm"][rows], factor * line["force_per_length_N_per_mm"][rows],
+                where="mid", label=f"t = {t:g} s")
     ax.set_xlabel("z (mm), along the finger from the proximal cut")
-    ax.set_ylabel("force per unit length (N/mm)")
+    ax.set_ylabel(label)
     ax.set_title(title)
     ax.grid(alpha=0.3)
     ax.legend()
@@ -166,8 +225,9 @@ def plot_line_force(line: dict, path: Path, title: str = "") -> None:
     fig.savefig(path, dpi=150)
 
 
-DEPTH_QUANTITIES = (("e_max", "max principal log strain"), ("e_min", "min principal log strain"),
-                    ("e12", "shear log strain e12"), ("sed_MPa", "strain energy density (MPa)"))
+DEPTH_QUANTITIES = (("e_max", "max principal log strain (-)"),
+                    ("e_min", "min principal log strain (-)"),
+                    ("e12", "shear log strain e12 (-)"), ("sed_MPa", "strain energy density (MPa)"))
 
 
 def plot_depth_profiles(depth: dict, path: Path, time_s: float, title: str = "") -> None:
@@ -176,9 +236,10 @@ def plot_depth_profiles(depth: dict, path: Path, time_s: float, title: str = "")
     axes = fig.subplots(2, 2, sharex=True)
     at_time = np.isclose(depth["time_s"], time_s)
     for ax, (key, label) in zip(axes.ravel(), DEPTH_QUANTITIES):
+        values, label = _scaled(depth[key][at_time], label)
         for d in np.unique(depth["depth_mm"][at_time]):
-            rows = at_time & (depth["depth_mm"] == d)
-            ax.plot(depth["x_mm"][rows], depth[key][rows], label=f"depth {d:g} mm")
+            rows = depth["depth_mm"][at_time] == d
+            ax.plot(depth["x_mm"][at_time][rows], values[rows], label=f"depth {d:g} mm")
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
     for ax in axes[1]:
@@ -190,8 +251,10 @@ def plot_depth_profiles(depth: dict, path: Path, time_s: float, title: str = "")
 
 
 #: The paper's Figs 7-8: strains in x/y, shear strain and SED at one depth, per bar spacing.
-SPACING_QUANTITIES = (("e11", "horizontal log strain e11"), ("e22", "vertical log strain e22"),
-                      ("e12", "shear log strain e12"), ("sed_MPa", "strain energy density (MPa)"))
+SPACING_QUANTITIES = (("e11", "horizontal log strain e11 (-)"),
+                      ("e22", "vertical log strain e22 (-)"),
+                      ("e12", "shear log strain e12 (-)"),
+                      ("sed_MPa", "strain energy density (MPa)"))
 
 
 def plot_spacing_profiles(runs: dict[float, dict], path: Path, time_s: float, depth_mm: float,
@@ -201,20 +264,23 @@ def plot_spacing_profiles(runs: dict[float, dict], path: Path, time_s: float, de
     fig = Figure(figsize=(9.6, 6.4))
     axes = fig.subplots(2, 2, sharex=True)
     colours = matplotlib.colormaps["viridis"](np.linspace(0.0, 0.9, len(runs)))
-    for colour, (d, depth) in zip(colours, sorted(runs.items(), reverse=True)):
-        rows = np.isclose(depth["time_s"], time_s) & np.isclose(depth["depth_mm"], depth_mm)
-        order = np.argsort(depth["x_mm"][rows])
-        for ax, (key, label) in zip(axes.ravel(), SPACING_QUANTITIES):
-            ax.plot(depth["x_mm"][rows][order], depth[key][rows][order], color=colour,
-                    label=f"d = {d:g} mm")
+    at = {d: np.isclose(r["time_s"], time_s) & np.isclose(r["depth_mm"], depth_mm)
+          for d, r in runs.items()}
+    for ax, (key, label) in zip(axes.ravel(), SPACING_QUANTITIES):
+        peak = max(float(np.nanmax(np.abs(r[key][at[d]]), initial=0.0)) for d, r in runs.items())
+        factor, label = display_unit(label, peak)
+        for colour, (d, depth) in zip(colours, sorted(runs.items(), reverse=True)):
+            order = np.argsort(depth["x_mm"][at[d]])
+            ax.plot(depth["x_mm"][at[d]][order], factor * depth[key][at[d]][order],
+                    color=colour, label=f"d = {d:g} mm")
             ax.plot([-d / 2, d / 2], [0.0, 0.0], "|", color=colour, ms=8)
-    for ax, (_, label) in zip(axes.ravel(), SPACING_QUANTITIES):
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
     for ax in axes[1]:
         ax.set_xlabel("x (mm); ticks on the axis: bar centres")
         ax.set_xlim(-4.0, 4.0)
-    axes[0, 0].legend(fontsize=8)
+    handles, labels = axes[0, 0].get_legend_handles_labels()  # beside the panels: off the data
+    fig.legend(handles, labels, loc="center right", fontsize=8)
     fig.suptitle(f"{title} at depth {depth_mm:g} mm, t = {time_s:g} s")
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0, 0.88, 1))
     fig.savefig(path, dpi=150)

@@ -18,10 +18,11 @@ r"""The frequency route of a scene: pressed state, then the small-signal respons
    receptors.csv, the stimulus quantities at the sites in the pressed state): thresholds.csv,
    one row per class, site and frequency, with I0 (absolute) and I1 (1:1 entrainment) in µm of
    probe displacement (NaN where s0 alone fires, inf where the site cannot follow);
-6. summary.json (pressed state, mesh, dofs, timings, the resonances seen: `resonances`) and
-   the figures
-   impedance.png (Bode plot of Z), receptor_transfer_<class>.png (amplitude over position
-   and frequency) and thresholds.png (the most sensitive site's I0 and I1 per class, with the
+6. summary.json (pressed state, mesh, dofs, timings, the resonances the grid resolves,
+   `resonances`, and where it does not, the bands to refine: `resonance_warning`) and the
+   figures impedance.png (Bode plot of Z at the computed frequencies, resonances and
+   unresolved bands marked), receptor_transfer_<class>.png (amplitude over position and
+   frequency) and thresholds.png (the most sensitive site's I0 and I1 per class, with the
    verified published bands, `vibrotactile.PUBLISHED`).
 
 **Transfer functions** (`SiteTransfer`). Each quantity q is a nonlinear function of the state;
@@ -52,6 +53,7 @@ from mpi4py import MPI
 from ufl.algorithms import expand_derivatives
 
 from .errors import InputError
+from .figures import plain_log_ticks
 from .harmonic import (
     HarmonicOptions,
     HarmonicSolver,
@@ -245,8 +247,8 @@ def run_frequency_response(scene: Scene, out: str | Path, *, frequencies=None,
         plot_impedance(rows, out / "impedance.png", scene.name)
         plot_receptor_transfer(site_rows, out, population, scene.name)
         plot_threshold_curves(curves, out / "thresholds.png", title=(
-            f"{scene.name}, {options.state} at {pressing.depth:g} mm: most sensitive site; "
-            "shaded: published best bands"))
+            f"{scene.name}, {options.state} at {pressing.depth:g} mm: most sensitive site"),
+            note=summary["resonance_warning"])
     comm.barrier()  # every file is written when any rank returns (rank 0 draws)
     return summary
 
@@ -338,21 +340,71 @@ def transfer_rows(frequency: float, values: dict | None, sites) -> list[dict]:
     return rows
 
 
-def resonances(rows: list[dict]) -> dict[str, list[float]]:
-    """The resonances the sweep resolves (interior local extrema of |K| over its frequencies,
-    Hz): "probe_held", maxima of |K| (poles of K: the fingertip's natural frequencies with the
-    probe's motion prescribed, the drive here, where the receptor transfers peak; |Z| maxima)
-    and "force_driven", maxima of the compliance |1/K| (zeros of K: the natural frequencies
-    under a force drive; |Z| minima). A sweep too coarse for a sharp peak misses it."""
+#: A sampled peak is resolved when both its neighbours lie in its half-power band (|K|, or
+#: |1/K|, at least 1/√2 of the peak's: the grid is finer than the peak's half width, and the
+#: parabola through the three samples places it), or when its neighbours are within
+#: ±RESONANCE_PRECISION of it (a peak sharper than the grid, but bracketed that closely).
+HALF_POWER = 1 / math.sqrt(2)
+RESONANCE_PRECISION = 0.02
+
+
+def resonances(rows: list[dict]) -> dict[str, list]:
+    """The resonances the sweep resolves (see HALF_POWER), Hz: "probe_held", maxima of |K|
+    (poles of K: the fingertip's natural frequencies with the probe's motion prescribed, the
+    drive here, where the receptor transfers peak; |Z| maxima) and "force_driven", maxima of
+    the compliance |1/K| (zeros of K: the natural frequencies under a force drive; |Z|
+    minima). A local maximum the grid does not resolve is not reported as a frequency but in
+    "unresolved": {"kind", "sampled_Hz", "refine_Hz": [its neighbours]}. A sweep can still
+    step over a peak without seeing it: no sampled maximum, nothing said."""
     f = np.array([r["frequency_Hz"] for r in rows])
-    a = np.array([r["K_abs_N_per_mm2"] for r in rows])
-    inner = range(1, len(f) - 1)
-    return {"probe_held": [float(f[i]) for i in inner if a[i] > max(a[i - 1], a[i + 1])],
-            "force_driven": [float(f[i]) for i in inner if a[i] < min(a[i - 1], a[i + 1])]}
+    k = np.array([r["K_abs_N_per_mm2"] for r in rows])
+    found = {"probe_held": [], "force_driven": [], "unresolved": []}
+    for kind, level in (("probe_held", k), ("force_driven", 1 / k)):
+        for i in range(1, len(f) - 1):
+            if level[i] <= max(level[i - 1], level[i + 1]):
+                continue
+            near = f[i + 1] / f[i - 1] <= (1 + RESONANCE_PRECISION) / (1 - RESONANCE_PRECISION)
+            if near or min(level[i - 1], level[i + 1]) >= HALF_POWER * level[i]:
+                found[kind].append(_peak(f[i - 1:i + 2], level[i - 1:i + 2]))
+            else:
+                found["unresolved"].append({"kind": kind, "sampled_Hz": float(f[i]),
+                                            "refine_Hz": [float(f[i - 1]), float(f[i + 1])]})
+    return found
+
+
+def _peak(f: np.ndarray, level: np.ndarray) -> float:
+    """The vertex of the parabola through three samples (log level over log f), the middle
+    one highest: inside the outer two."""
+    x, y = np.log(f), np.log(level)
+    d1, d2 = (y[1] - y[0]) / (x[1] - x[0]), (y[2] - y[1]) / (x[2] - x[1])
+    curvature = (d2 - d1) / (x[2] - x[0])  # < 0
+    return float(np.exp(0.5 * (x[0] + x[1]) - d1 / (2 * curvature)))
+
+
+def unresolved_bands(found: dict) -> list[tuple[float, float]]:
+    """The bands to refine: the unresolved peaks' neighbours (both kinds), overlaps joined."""
+    bands = []
+    for lo, hi in sorted(tuple(u["refine_Hz"]) for u in found["unresolved"]):
+        if bands and lo <= bands[-1][1]:
+            bands[-1] = (bands[-1][0], max(hi, bands[-1][1]))
+        else:
+            bands.append((lo, hi))
+    return bands
+
+
+def resolution_warning(found: dict) -> str:
+    """"not resolved by the grid: refine near 10–464 Hz" for the unresolved peaks of
+    `resonances` (`unresolved_bands`), "" if none."""
+    bands = unresolved_bands(found)
+    if not bands:
+        return ""
+    return "not resolved by the grid: refine near " + ", ".join(
+        f"{lo:.3g}–{hi:.3g}" for lo, hi in bands) + " Hz"
 
 
 def _summary(scene, fm, dofs, pressed, solver, rows, options, comm, wall) -> dict:
     solves = [r["solve_s"] for r in rows]
+    found = resonances(rows)
     return {
         "scene": scene_record(scene),
         "harmonic": {"state": options.state, "frequencies_Hz": [r["frequency_Hz"] for r in rows]},
@@ -364,7 +416,9 @@ def _summary(scene, fm, dofs, pressed, solver, rows, options, comm, wall) -> dic
         "solve_s_total": float(np.sum(solves)),
         "solve_s_mean": float(np.mean(solves)) if solves else math.nan,
         "wall_time_s": wall,
-        "resonances_Hz": resonances(rows),
+        "resonances_Hz": {k: found[k] for k in ("probe_held", "force_driven")},
+        "resonances_unresolved": found["unresolved"],
+        "resonance_warning": resolution_warning(found),
     }
 
 
@@ -386,19 +440,41 @@ def _printer(progress: bool, comm):
 
 
 def plot_impedance(rows: list[dict], path: Path, title: str = "") -> Path:
-    """Bode plot of the driving-point impedance Z(ω): |Z| and its phase over f, log axes."""
+    """Bode plot of the driving-point impedance Z(ω): |Z| and its phase at the computed
+    frequencies (markers only: a line between two samples would claim a curve that was not
+    computed, across resonances), log axes; the resolved resonances as vertical lines, and the
+    bands where the grid does not resolve a peak shaded, with the warning below the axes."""
     f = np.array([r["frequency_Hz"] for r in rows])
-    fig = Figure(figsize=(6.4, 6.0))
+    found = resonances(rows)
+    fig = Figure(figsize=(6.4, 6.4))
     top, bottom = fig.subplots(2, 1, sharex=True)
-    top.loglog(f, [r["Z_abs_Ns_per_mm2"] for r in rows], "o-", ms=3)
+    top.loglog(f, [r["Z_abs_Ns_per_mm2"] for r in rows], "o", ms=4, label="computed")
     top.set_ylabel("|Z| (N·s/mm per mm)")
-    top.set_title(f"{title}: driving-point impedance")
-    bottom.semilogx(f, [r["Z_phase_deg"] for r in rows], "o-", ms=3)
+    top.set_title(f"{title}: driving-point impedance" if title else "driving-point impedance")
+    bottom.semilogx(f, [r["Z_phase_deg"] for r in rows], "o", ms=4)
     bottom.set_ylabel("phase of Z (°)")
+    bottom.set_yticks([-90, -45, 0, 45, 90])
     bottom.set_xlabel("frequency (Hz)")
+    plain_log_ticks(bottom, "x")
+    styles = {"probe_held": ("tab:red", "--", "|K| max (probe held)"),
+              "force_driven": ("tab:purple", ":", "|K| min (force driven)")}
+    for kind, (colour, line, label) in styles.items():
+        for j, fr in enumerate(found[kind]):
+            for ax in (top, bottom):
+                ax.axvline(fr, color=colour, ls=line, lw=1,
+                           label=f"{label}: " + ", ".join(f"{v:.3g}" for v in found[kind])
+                           + " Hz" if ax is top and j == 0 else None)
+    for j, (lo, hi) in enumerate(unresolved_bands(found)):
+        for ax in (top, bottom):
+            ax.axvspan(lo, hi, color="tab:orange", alpha=0.15, lw=0, label=(
+                "peak not resolved by the grid" if ax is top and j == 0 else None))
     for ax in (top, bottom):
         ax.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
+    top.legend(fontsize=7, loc="best")
+    warning = resolution_warning(found)
+    fig.tight_layout(rect=(0, 0.05 if warning else 0, 1, 1))
+    if warning:
+        fig.text(0.5, 0.015, warning, ha="center", fontsize=8, color="tab:red", wrap=True)
     fig.savefig(path, dpi=120)
     return path
 
@@ -406,8 +482,12 @@ def plot_impedance(rows: list[dict], path: Path, title: str = "") -> Path:
 def plot_receptor_transfer(rows: list[dict], out: Path, population,
                            title: str = "") -> list[Path]:
     """Per receptor class: the amplitude of the stimulus quantity its model reads, per µm of
-    drive, over the sites' position x and the frequency (log colour scale). `rows`: those of
+    drive, over the sites' position x and the frequency (log colour scale). Each computed
+    (site, frequency) is one cell, its edges halfway between neighbours (geometric means in
+    frequency, on the log axis), so no cell is wider than its sample's share. `rows`: those of
     receptor_transfer.csv."""
+    from matplotlib.colors import LogNorm
+
     data = {k: np.array([r[k] for r in rows]) for k in TRANSFER_COLUMNS}
     paths = []
     for cls in CLASSES:
@@ -419,16 +499,34 @@ def plot_receptor_transfer(rows: list[dict], out: Path, population,
         ax = fig.subplots()
         quantity = population[cls].quantity
         z = np.full((len(f), len(x)), np.nan)
-        fi = np.searchsorted(f, data["frequency_Hz"][mine])
-        xi = np.searchsorted(x, data["x_mm"][mine])
-        z[fi, xi] = data[f"{quantity}_abs_per_um"][mine]
-        mesh = ax.pcolormesh(x, f, np.log10(np.abs(z) + 1e-300), shading="nearest")
+        z[np.searchsorted(f, data["frequency_Hz"][mine]),
+          np.searchsorted(x, data["x_mm"][mine])] = data[f"{quantity}_abs_per_um"][mine]
+        z = np.ma.masked_where(~(z > 0), z)  # a zero amplitude has no colour on a log scale
+        mesh = ax.pcolormesh(_edges(x, log=False), _edges(f, log=True), z,
+                             norm=LogNorm(vmin=z.min(), vmax=z.max()), shading="flat")
         ax.set_yscale("log")
+        plain_log_ticks(ax, "y")
         ax.set_xlabel("x of the site (mm)")
-        ax.set_ylabel("frequency (Hz)")
-        ax.set_title(f"{title}: {cls}, {quantity} per µm of drive")
-        fig.colorbar(mesh, ax=ax, label=f"log10 amplitude ({QUANTITIES[quantity][2]}/µm)")
+        ax.set_ylabel("vibration frequency (Hz)")
+        depths = ", ".join(f"{d:g}" for d in np.unique(data["depth_mm"][mine]))
+        name = quantity.replace("_", " ")
+        ax.set_title(f"{title}: {cls} sites ({depths} mm deep), {name} per µm of drive"
+                     if title else f"{cls} sites ({depths} mm deep), {name} per µm of drive",
+                     fontsize=9)
+        fig.colorbar(mesh, ax=ax, label=f"{name} amplitude ({QUANTITIES[quantity][2]} per µm)")
         fig.tight_layout()
         paths.append(out / f"receptor_transfer_{cls}.png")
         fig.savefig(paths[-1], dpi=120)
     return paths
+
+
+def _edges(centres: np.ndarray, log: bool) -> np.ndarray:
+    """Cell edges around sorted sample positions: midpoints (geometric with `log`), the outer
+    edges as far out as the nearest inner one; one sample: a factor 1.2 (or ±0.5) around."""
+    c = np.log(centres) if log else np.asarray(centres, dtype=float)
+    if len(c) == 1:
+        e = c[0] + np.array([-0.5, 0.5]) * (np.log(1.2) if log else 1.0)
+    else:
+        mid = 0.5 * (c[1:] + c[:-1])
+        e = np.concatenate([[2 * c[0] - mid[0]], mid, [2 * c[-1] - mid[-1]]])
+    return np.exp(e) if log else e

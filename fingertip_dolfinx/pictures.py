@@ -13,9 +13,10 @@ from pathlib import Path
 from .fieldplots import plot_field
 
 #: name -> (label with units, how to get the field from (problem, derived fields), the
-#: quantile beyond which colours saturate or None). Strains and SED peak at an indenter's
-#: edge or tip (under the 25 µm wedge tip the SED is 30 times its value 0.5 mm away): on a
-#: full scale the rest of the section would be one colour.
+#: area quantile beyond which colours may saturate or None). Strains and SED peak at an
+#: indenter's edge or tip (under the 25 µm wedge tip the SED is 30 times its value 0.5 mm
+#: away): on a full scale the rest of the section would be one colour. Where the colours
+#: saturate, the picture marks the true extreme and gives its value (fieldplots.plot_field).
 FIELDS = {
     "u2": ("vertical displacement u2 (mm)", lambda p, d: p.u.sub(1), None),
     "e_max": ("max principal log strain e_max (-)", lambda p, d: d.principal.sub(0), 0.995),

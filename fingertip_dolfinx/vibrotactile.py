@@ -473,38 +473,84 @@ PUBLISHED = (
 )
 
 
-def plot_threshold_curves(curves, path, *, published=PUBLISHED, title: str = "") -> None:
+def _short_source(source: str) -> str:
+    """First author and year of a citation ("Johansson 1982"); "secondary table" for a
+    summary table (doi 10.1152/jn.90990.2008, 2009)."""
+    import re
+
+    if source.startswith("table"):
+        return "secondary table, J Neurophysiol 2009"
+    year = re.search(r"\b(19|20)\d\d\b", source)
+    return source.split(",")[0] + (f" {year.group(0)}" if year else "")
+
+
+def _published_handle(p: Published, colour):
+    """The overlay of one published fact and its legend entry (band shaded, hatched for the
+    psychophysical one; a threshold as a bar over its band)."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    band = f"{p.band[0]:g}–{p.band[1]:g} Hz"
+    who = "human psychophysics" if p.cls == "psychophysics" else p.cls
+    if p.amplitude is None:
+        return Patch(facecolor=colour, alpha=0.15, hatch="//" if p.cls == "psychophysics"
+                     else None, label=f"{who}: best band {band} ({_short_source(p.source)})")
+    return Line2D([], [], color=colour, lw=4, alpha=0.5, label=(
+        f"{who}: threshold ≥ {p.amplitude * 1e3:g} µm at {band} (lower bound; "
+        f"{_short_source(p.source)})"))
+
+
+def plot_threshold_curves(curves, path, *, published=PUBLISHED, title: str = "",
+                          note: str = "") -> list[str]:
     """Threshold vs frequency, log-log, amplitudes in µm: per class (colour) the most
-    sensitive site's absolute threshold I0 (solid) and 1:1 entrainment threshold I1 (dashed);
-    published bands of best frequency as shaded spans (hatched for the psychophysical one)
-    and published threshold amplitudes as horizontal bars over their band.
-    `curves`: VibrationThresholds, one per class."""
+    sensitive site's absolute threshold I0 (filled circles) and 1:1 entrainment threshold I1
+    (open triangles), at the computed frequencies only (markers: a line would pass across
+    resonances the sweep did not compute); the published bands of best frequency as shaded
+    spans (hatched for the psychophysical one) and published threshold amplitudes as bars
+    over their band, each named in the legend below the axes. A missing marker: no threshold
+    there (the pressed state alone fires the site, or it cannot follow 1:1). `note`: a
+    warning written in red above the axes (the frequency route's resolution warning).
+    `curves`: VibrationThresholds, one per class. Returns the legend's entries."""
     from matplotlib.figure import Figure
+
+    from .figures import plain_log_ticks
 
     colours = {"SA1": "tab:blue", "RA": "tab:green", "PC": "tab:red",
                "psychophysics": "0.5"}
-    fig = Figure(figsize=(6.4, 4.6))
+    fig = Figure(figsize=(7.2, 7.0))
     ax = fig.subplots()
+    handles = []
     for th in curves:
         c = colours.get(th.name, "k")
-        for criterion, style in (("absolute", "-"), ("entrainment", "--")):
+        for criterion, marker, fill, name in (("absolute", "o", c, "I0 absolute"),
+                                              ("entrainment", "^", "none", "I1 1:1")):
             y = th.best(criterion) * 1e3
             keep = np.isfinite(y) & (y > 0)
-            ax.loglog(th.frequency[keep], y[keep], style, color=c,
-                      label=f"{th.name} {'I0 absolute' if style == '-' else 'I1 1:1'}")
+            handles += ax.loglog(th.frequency[keep], y[keep], marker, color=c, mfc=fill, ms=5,
+                                 ls="none", label=f"{th.name} {name}")
     for p in published:
         c = colours.get(p.cls, "k")
-        if p.band is not None and p.amplitude is None:
+        if p.band is None:
+            continue
+        if p.amplitude is None:
             ax.axvspan(*p.band, color=c, alpha=0.08, hatch="//" if p.cls == "psychophysics"
                        else None)
-        elif p.band is not None:
+        else:
             ax.plot(p.band, [p.amplitude * 1e3] * 2, color=c, lw=4, alpha=0.5,
                     solid_capstyle="butt")
-    ax.set_xlabel("frequency (Hz)")
+        handles.append(_published_handle(p, c))
+    ax.set_xlabel("vibration frequency (Hz)")
     ax.set_ylabel("probe amplitude at threshold (µm)")
+    plain_log_ticks(ax, "x")
     ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=7, ncol=2)
-    ax.set_title(title or "afferent thresholds (most sensitive site); shaded: published "
-                 "best bands", fontsize=8)
-    fig.tight_layout()
+    ax.set_title(title or "afferent thresholds (most sensitive site)", fontsize=9)
+    fig.legend(handles=handles, loc="lower center", bbox_to_anchor=(0.5, 0.025), fontsize=7,
+               ncol=2, frameon=False)
+    fig.text(0.5, 0.005, "markers: computed frequencies; no marker: no threshold there (the "
+             "pressed state alone fires, or the site cannot follow 1:1)", ha="center",
+             fontsize=7, color="0.3")
+    if note:
+        fig.text(0.5, 0.975, note, ha="center", va="top", fontsize=7, color="tab:red")
+    fig.tight_layout(rect=(0, 0.19, 1, 0.96 if note else 1))
     fig.savefig(path, dpi=150)
+    return [h.get_label() for h in handles]

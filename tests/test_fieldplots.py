@@ -73,7 +73,7 @@ def test_u2_range_and_colours(comm, shared_tmp_path, cell_type):
     if comm.rank != 0:
         assert clim is None
         return
-    assert clim == pytest.approx((0.0, 2 * A), abs=1e-12)
+    assert clim.range == pytest.approx((0.0, 2 * A), abs=1e-12)
     image = _image(path)
     top, bottom, left, right = _body_box(image)
     assert (right - left) / (bottom - top) == pytest.approx(2 / (1 + 2 * A), rel=0.01)
@@ -102,7 +102,7 @@ def test_indenter_drawn_below_the_body(comm, shared_tmp_path):
                       indenters=[(cylinder, -0.1)])
     if comm.rank != 0:
         return
-    assert clim == pytest.approx((0.0, 2 * A), abs=1e-12)
+    assert clim.range == pytest.approx((0.0, 2 * A), abs=1e-12)
     image = _image(path)[120:]  # below the title
     rows, cols = np.nonzero(_is(image, INDENTER_GREY))
     assert len(rows) > 2000
@@ -123,7 +123,7 @@ def test_submesh_field(comm, shared_tmp_path):
     high = comm.allreduce(p.x.array.max(), op=MPI.MAX)
     if comm.rank != 0:
         return
-    assert clim == (low, high)
+    assert clim.range == (low, high)
     image = _image(path)
     top, bottom, left, right = _body_box(image, coloured=False)
     row = (top + bottom) // 2
@@ -147,7 +147,7 @@ def test_function_fields(comm, shared_tmp_path, family, degree):
     else:
         expected = (0.0, 4.0)
     if comm.rank == 0:
-        assert clim == pytest.approx(expected, abs=1e-12)
+        assert clim.range == pytest.approx(expected, abs=1e-12)
 
 
 def test_displacement_component(comm, shared_tmp_path):
@@ -155,7 +155,7 @@ def test_displacement_component(comm, shared_tmp_path):
     msh, tags, u, _ = _rectangle(comm)
     clim = plot_field(msh, tags, u, u.sub(1), shared_tmp_path / "u2.png", label="u2 (mm)")
     if comm.rank == 0:
-        assert clim == pytest.approx((0.0, 2 * A), abs=1e-12)
+        assert clim.range == pytest.approx((0.0, 2 * A), abs=1e-12)
 
 
 def test_node_array_field(comm, shared_tmp_path):
@@ -163,7 +163,7 @@ def test_node_array_field(comm, shared_tmp_path):
     clim = plot_field(msh, tags, u, 3.0 * msh.geometry.x[:, 1], shared_tmp_path / "y.png",
                       label="3y (mm)")
     if comm.rank == 0:
-        assert clim == pytest.approx((0.0, 3.0), abs=1e-12)
+        assert clim.range == pytest.approx((0.0, 3.0), abs=1e-12)
     with pytest.raises(ValueError, match="geometry nodes"):
         plot_field(msh, tags, u, np.zeros(3), shared_tmp_path / "y.png", label="3y (mm)")
 
@@ -176,12 +176,73 @@ def test_rejects_a_field_on_another_mesh(comm, shared_tmp_path):
         plot_field(msh, tags, u, f, shared_tmp_path / "x.png", label="f")
 
 
-def test_saturated_colours_cover_a_share_of_the_area(comm, shared_tmp_path):
-    """u2 = A x over the 2 × 1 rectangle (the shear keeps areas): a fraction q of the area has
-    x below 2q, so the colour range spans (2(1 − q)A, 2qA), to one cell column (0.125 mm),
-    however the nodes are spread."""
+SPIKE = (1.5, 0.5, 100.0)  # a node of the 16 x 8 grid and the value there: a near-singular peak
+
+
+def _spiked(msh):
+    """u2 = A x at the nodes, but SPIKE's value at its node: at the undeformed nodes."""
+    x = msh.geometry.x
+    at_spike = np.hypot(x[:, 0] - SPIKE[0], x[:, 1] - SPIKE[1]) < 1e-9
+    return np.where(at_spike, SPIKE[2], A * x[:, 0])
+
+
+@pytest.mark.mpi
+def test_saturated_colours_mark_the_true_extreme(comm, shared_tmp_path):
+    """A peak 250 times the rest (one node; its 6 cells hold 2.3 % of the area): the colours
+    stop at the 95 % area quantile, below the rest's max 2A, and the picture states the true
+    max, where it is drawn (the spike's node, moved by u)."""
+    msh, tags, u, _ = _rectangle(comm)
+    values = _spiked(msh)
+    scale = plot_field(msh, tags, u, values, shared_tmp_path / "s.png",
+                       label="sed (MPa)", saturate=0.95)
+    true_max = comm.allreduce(values.max(), op=MPI.MAX)
+    if comm.rank != 0:
+        return
+    assert scale.high < 2 * A < true_max  # saturated
+    assert scale.shown("max") == pytest.approx(true_max, rel=1e-14)
+    (marked,) = scale.extremes
+    assert (marked.kind, marked.x, marked.y) == pytest.approx(
+        ("max", SPIKE[0], SPIKE[1] + A * SPIKE[0]), abs=1e-12)
+    assert scale.shown("min") == scale.low == 0.0  # no cut at the bottom: nothing beyond
+
+
+def test_mild_peak_keeps_the_full_range(comm, shared_tmp_path):
+    """With `saturate` but no outlier (u2 = A x: the 99.5 % range is nearly the full one),
+    the colours span the field's whole range, and nothing is marked."""
     msh, tags, u, u2 = _rectangle(comm)
-    clim = plot_field(msh, tags, u, u2, shared_tmp_path / "s.png", label="u2 (mm)",
-                      saturate=0.9)
+    scale = plot_field(msh, tags, u, u2, shared_tmp_path / "m.png", label="u2 (mm)",
+                       saturate=0.995)
     if comm.rank == 0:
-        assert clim == pytest.approx((2 * 0.1 * A, 2 * 0.9 * A), abs=0.125 * A)
+        assert scale.range == pytest.approx((0.0, 2 * A), abs=1e-12)
+        assert scale.extremes == []
+
+
+def test_saturated_colours_cover_a_share_of_the_area(comm, shared_tmp_path):
+    """u2 = A x over the 2 × 1 rectangle (the shear keeps areas), with one spiked node: a
+    fraction q of the area has x below 2q, so the colour range stops at 2qA, to one cell column
+    (0.125 mm), however the nodes are spread; the bottom (0, not far below the 10 % quantile)
+    is not cut."""
+    msh, tags, u, _ = _rectangle(comm)
+    scale = plot_field(msh, tags, u, _spiked(msh), shared_tmp_path / "s.png",
+                       label="u2 (mm)", saturate=0.9)
+    if comm.rank == 0:
+        assert scale.range == pytest.approx((0.0, 2 * 0.9 * A), abs=0.125 * A)
+        assert [e.kind for e in scale.extremes] == ["max"]
+
+
+@pytest.mark.parametrize("peak, factor, shown", [
+    (3.3e-5, 1e6, "sed (Pa)"), (8.5e-4, 1e3, "sed (kPa)"), (0.25, 1.0, "sed (MPa)"),
+    (0.04, 1e3, "sed (kPa)")])
+def test_small_stresses_in_smaller_units(peak, factor, shown):
+    """Tick labels stay short: an SED of 3.3e-5 MPa is shown as 33 Pa, not 0.000033."""
+    from fingertip_dolfinx.fieldplots import _value_text
+    from fingertip_dolfinx.figures import display_unit
+
+    assert display_unit("sed (MPa)", peak) == (factor, shown)
+    assert display_unit("e_max (-)", 2.5e-6) == (1e6, "e_max (x 1e-6)")
+    assert display_unit("e_max (-)", 0.05) == (1.0, "e_max (-)")  # 0.05 reads well as it is
+    assert display_unit("u2 (mm)", 0.02) == (1e3, "u2 (µm)")
+    assert display_unit("force (N/mm)", 1.2e-3) == (1e3, "force (mN/mm)")
+    # a marked extreme in its own unit: a 20 kPa peak on a map whose colours stop at 55 Pa
+    assert _value_text("sed (MPa)", 0.0201) == "20.1 kPa"
+    assert _value_text("e_min (-)", -3.25e-4) == "-3.25e-04"

@@ -17,6 +17,7 @@ import dolfinx.fem.petsc as fpetsc
 import numpy as np
 import pytest
 from dolfinx import fem
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from fingertip_dolfinx.errors import InputError
@@ -232,7 +233,7 @@ def test_site_transfer_at_two_hertz_is_the_instantaneous_change(pressed):
 
 
 @pytest.mark.mpi
-def test_run_writes_the_frequency_route(shared_tmp_path):
+def test_run_writes_the_frequency_route(shared_tmp_path, capsys):
     """`fingertip run vibrotactile --frequencies ...`: the tables, the summary, the figures."""
     import csv
     import json
@@ -253,9 +254,23 @@ def test_run_writes_the_frequency_route(shared_tmp_path):
     assert len(sites) % 3 == 0 and {s["class"] for s in sites} == {"SA1", "RA", "PC"}
     summary = json.loads((out / "summary.json").read_text())
     assert summary["pressed_state"]["kind"] == "held" and summary["dofs"] > 0
+    _check_resonances(summary, rows, capsys.readouterr().err)  # the console line: stderr
     assert (out / "impedance.png").exists() and (out / "receptor_transfer_PC.png").exists()
     _check_thresholds(out, sites)
     assert main(["run", "vibrotactile", "--frequencies", "0:1:3", "--out", str(out)]) == 2
+
+
+def _check_resonances(summary, rows, printed: str):
+    """summary.json names the resolved peaks and the unresolved ones' bands, and the console
+    line says the same warning (3 frequencies resolve no peak: every sampled one is a band)."""
+    from fingertip_dolfinx.frequency_response import resolution_warning, resonances
+
+    found = resonances([{k: float(v) for k, v in r.items()} for r in rows])
+    assert summary["resonances_Hz"] == {k: found[k] for k in ("probe_held", "force_driven")}
+    assert summary["resonances_unresolved"] == found["unresolved"]
+    assert summary["resonance_warning"] == resolution_warning(found)
+    if MPI.COMM_WORLD.rank == 0 and summary["resonance_warning"]:
+        assert summary["resonance_warning"] in printed
 
 
 def _check_thresholds(out, sites):
@@ -285,3 +300,50 @@ def _check_thresholds(out, sites):
     assert at_site
     for values in at_site.values():
         assert max(values) == pytest.approx(min(values), rel=1e-9)
+
+
+def _oscillator_rows(frequencies, zeta: float, pole: bool) -> list[dict]:
+    """frequency_response rows of a damped oscillator, f_n = 47 Hz: K = k − mω² + icω (a
+    zero of K: |K| minimum, force driven) or, with `pole`, k²/K (a |K| maximum, probe held)."""
+    k, fn = 1.0, 47.0
+    rows = []
+    for f in frequencies:
+        r = f / fn
+        K = k * (1 - r**2 + 2j * zeta * r)
+        rows.append({"frequency_Hz": float(f), "K_abs_N_per_mm2": abs(k**2 / K if pole else K)})
+    return rows
+
+
+@pytest.mark.parametrize("pole", [True, False])
+def test_resonance_reported_only_where_the_grid_resolves_it(pole):
+    """The oscillator's peak is at f* = f_n √(1 − 2ζ²) (|K|² extreme). A 10-point log grid over
+    1–1000 Hz has a sampled maximum at 46.4 Hz whose neighbours (21.5, 100 Hz) are far outside
+    the 1.9 Hz half-power band: no frequency, a warning naming the band to refine. A 0.25 Hz
+    grid resolves it: the reported frequency is within half a spacing of f* (where the best
+    sample already is; the parabola through three samples does not do worse)."""
+    from fingertip_dolfinx.frequency_response import resolution_warning, resonances
+
+    kind = "probe_held" if pole else "force_driven"
+    zeta = 0.02
+    exact = 47.0 * math.sqrt(1 - 2 * zeta**2)
+    coarse = resonances(_oscillator_rows(np.geomspace(1.0, 1000.0, 10), zeta, pole))
+    assert coarse["probe_held"] == coarse["force_driven"] == []
+    (unresolved,) = coarse["unresolved"]
+    assert unresolved["kind"] == kind
+    assert unresolved["refine_Hz"] == pytest.approx([1000 ** (4 / 9), 100.0])
+    assert resolution_warning(coarse) == "not resolved by the grid: refine near 21.5–100 Hz"
+    fine = resonances(_oscillator_rows(np.linspace(30.0, 70.0, 161), zeta, pole))
+    (found,) = fine[kind]
+    assert found == pytest.approx(exact, abs=0.25 / 2)
+    assert fine["unresolved"] == [] and resolution_warning(fine) == ""
+
+
+def test_a_peak_sharper_than_the_grid_is_reported_when_bracketed_closely():
+    """ζ = 1e-4 (half-power band 0.01 Hz): no grid of 0.5 % steps resolves its width, but its
+    neighbours bracket it within ±RESONANCE_PRECISION: reported, within one spacing of f*."""
+    from fingertip_dolfinx.frequency_response import RESONANCE_PRECISION, resonances
+
+    f = np.geomspace(40.0, 55.0, 60)
+    assert f[2] / f[0] < (1 + RESONANCE_PRECISION) / (1 - RESONANCE_PRECISION)
+    (found,) = resonances(_oscillator_rows(f, 1e-4, pole=True))["probe_held"]
+    assert found == pytest.approx(47.0, abs=f[1] - f[0])

@@ -184,9 +184,15 @@ def test_the_threshold_figure_is_drawn(tmp_path):
     f = np.geomspace(5, 500, 6)
     curves = [vt.vibration_thresholds(pop[name], f, np.ones((6, 2)), np.zeros(2))
               for name in ("RA", "PC")]
-    vt.plot_threshold_curves(curves, tmp_path / "thresholds.png")
+    legend = vt.plot_threshold_curves(curves, tmp_path / "thresholds.png")
     assert (tmp_path / "thresholds.png").stat().st_size > 10_000
     assert all(p.source and p.read for p in vt.PUBLISHED)
+    # every shaded band and bar drawn is explained in the legend: its class and band in Hz
+    for p in vt.PUBLISHED:
+        if p.band is not None:
+            band = f"{p.band[0]:g}–{p.band[1]:g} Hz"
+            assert sum(band in entry for entry in legend) >= 1, (p.cls, band, legend)
+    assert {"RA I0 absolute", "PC I1 1:1"} <= set(legend)
 
 
 def test_a_site_already_firing_has_no_threshold():

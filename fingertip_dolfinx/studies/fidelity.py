@@ -140,17 +140,20 @@ def _write(rows, out: Path, scene_name: str):
 
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(6.4, 4.2))
+    fig = Figure(figsize=(7.6, 4.2))
     ax = fig.subplots()
-    for r in rows:
+    markers = "osD^vP*X"
+    for i, r in enumerate(rows):
         if r.get("failure"):
             continue
-        ax.scatter(r["wall_time_s"], max(r["max_error"], 1e-6), s=30)
-        ax.annotate(r["model"], (r["wall_time_s"], max(r["max_error"], 1e-6)), fontsize=8,
-                    xytext=(4, 4), textcoords="offset points")
+        ax.scatter(r["wall_time_s"], max(r["max_error"], 1e-6), s=36, marker=markers[i % 8],
+                   label=r["model"])
+    # a legend, not labels at the points: models of nearly equal cost and error overlap
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     ax.set_yscale("log")
     ax.set_xlabel("wall time (s)")
-    ax.set_ylabel("largest relative error of the key outputs")
+    ax.set_ylabel("largest relative error of the key outputs\n"
+                  "(against the full model; floor 1e-6)")
     ax.set_title(f"{scene_name}: model fidelity against cost")
     ax.grid(alpha=0.3, which="both")
     fig.tight_layout()

@@ -615,7 +615,7 @@ def _figures(out: Path, rows: list[dict], profiles1: dict, profiles4: dict) -> l
                 a2.plot(p, z, "o-", ms=3, label=f"{method}, Δt = {dt / bound:.2g}× bound")
                 a2.plot(exact, z, "k:", lw=1)
         a2.set(xlabel="p / load (dotted: exact one-step)", ylabel="z (mm)", ylim=(0.5, 1.0))
-        a2.legend(fontsize=7)
+        a2.legend(fontsize=7, loc="lower left")  # where no profile runs
         fig.tight_layout()
         written.append(out / "stability_time_step.png")
         fig.savefig(written[-1], dpi=120)
