@@ -97,6 +97,28 @@ def prepare_directory(out: Path, comm: MPI.Comm) -> Path:
     return out
 
 
+#: What a run writes that a later run in the same folder might not overwrite: files named by
+#: output time, the figures, the summary, the receptor table and the fields of older versions.
+RUN_OUTPUTS = ("summary.json", "fields_t*s.npz", "*_t*s.png", "force_history.png",
+               "surface_profile.png", "surface_across.png", "surface_along.png",
+               "line_force.png", "receptors.csv", "*-from-*s.bp")
+
+
+def clear_earlier_run(out: Path, comm: MPI.Comm) -> None:
+    """A fresh run into a folder that holds an earlier one: remove the earlier run's files
+    that this run may not rewrite (a picture at a time it does not reach, its summary.json
+    until this run writes its own), so that no file in the folder belongs to another run.
+    Only the run's own file names go; anything else in the folder stays."""
+    if comm.rank == 0:
+        for pattern in RUN_OUTPUTS:
+            for path in Path(out).glob(pattern):
+                if path.is_dir():
+                    shutil.rmtree(path, ignore_errors=True)
+                else:
+                    path.unlink(missing_ok=True)
+    comm.barrier()
+
+
 class CsvLog:
     """A CSV file written row by row on rank 0 (flushed, so a crash loses nothing). The header
     and, on a resume, the rows kept are written whole (`whole`); rows are then appended."""

@@ -50,6 +50,7 @@ from .outputs import (
     CsvLog,
     FieldWriters,
     check_resume,
+    clear_earlier_run,
     prepare_directory,
     read_csv,
     run_summary,
@@ -233,6 +234,7 @@ class Run:
             stored, t = self.checkpoint.stored()
             check_resume(stored, record, t, self.out)
         else:
+            clear_earlier_run(self.out, self.comm)
             self.checkpoint.start(record)
         return record
 

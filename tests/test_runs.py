@@ -129,6 +129,22 @@ def test_a_resume_may_run_on_past_the_end(finished, tmp_path):
     assert summary["status"] == "completed" and summary["scene_data"]["protocol"]["end_time"] == 1.2
 
 
+def test_a_fresh_run_into_an_earlier_runs_folder_leaves_none_of_its_files(finished, tmp_path):
+    """A fresh run (no --resume) into a folder with an earlier run's files: the earlier run's
+    pictures and arrays at a time this run does not reach are gone, so every file in the
+    folder is this run's; a file that is not a run's stays."""
+    import shutil
+
+    out = tmp_path / "again"
+    shutil.copytree(finished, out)
+    assert sorted(p.name for p in out.glob("*_t0.2s.*"))  # the earlier run's 0.2 s files
+    (out / "notes.txt").write_text("mine")
+    assert main([*ARGS, "--set", "output.times=[0.5, 1.0]", "--out", str(out)]) == 0
+    assert not list(out.glob("*_t0.2s.*")) and list(out.glob("*_t0.5s.*"))
+    assert (out / "notes.txt").read_text() == "mine"
+    assert bp_times(out / "displacement.bp") == pytest.approx([0.5, 1.0], abs=1e-12)
+
+
 # --- fields at the output times ------------------------------------------------------------
 
 
