@@ -369,33 +369,29 @@ def _delivered(values: dict, exact: dict) -> float:
 
 
 def test_a_tolerance_asked_of_the_outputs_is_delivered():
-    """Local error control at rtol = tol (the default atol) leaves the outputs' global error
-    above tol (measured 1.5e-2 at tol 1e-2: the errors of every step add up, and atol, 1e-6 MPa,
-    is 0.1 % of the peak pressure). The tolerance-driven control (the time share of tol, its
-    steps checked against a run 4 times tighter) delivers within the time share, and its
-    estimate, reported, bounds what it delivered. "Exact": the same mesh at rtol 1e-6 and
-    Newton to 1e-15 N/mm (its own error ~1e-5 of the peaks, far below the 2.5e-3 asked)."""
+    """The tolerance-driven control (the time share of tol; its steps checked against a run 4
+    times tighter, rtol and atol alike) delivers the outputs within the time share, and its
+    estimate, reported per output, bounds what it delivered. "Exact": the same mesh at rtol
+    1e-5, Newton to 1e-15 N/mm (7e-5 of the peaks from one at 1e-6, against 2.5e-3 asked).
+    Local error control alone does not do this: on the issue's column (benchmarks/
+    biphasic_confined.py --issue) rtol 1e-4 ends 6.5e-3 off in the pore pressure."""
     from fingertip_dolfinx.solver import TIME_SHARE, tolerance_steps, verify_time
 
-    exact = _column_outputs(StepOptions(control="error", scheme="bdf2", rtol=1e-6, atol=1e-12,
-                                        dt_initial=1e-3, dt_min=1e-9, dt_max=1000.0),
+    exact = _column_outputs(StepOptions(control="error", scheme="bdf2", rtol=1e-5, atol=1e-11,
+                                        dt_initial=1e-2, dt_min=1e-9, dt_max=1000.0),
                             {"snes_rtol": 1e-12, "snes_atol": 1e-15, "snes_max_it": 30},
                             "exact_")
     tol = 1e-2
-    plain = _column_outputs(StepOptions(control="error", scheme="bdf2", rtol=tol), None,
-                            "plain_")
     budget = TIME_SHARE * tol
     check = verify_time(lambda options, i: _column_outputs(options, None, f"asked{i}_"),
                         tolerance_steps(budget, StepOptions(dt_max=1000.0)), budget,
                         scales=_relative_to_peaks)
     delivered, estimated = _delivered(check["values"], exact), max(check["estimates"].values())
-    print(f"plain rtol {tol:g}: {_delivered(plain, exact):.2e}; asked {tol:g} (time share "
-          f"{budget:g}): delivered {delivered:.2e}, estimated {estimated:.2e}, "
-          f"runs {check['runs']}")
-    assert _delivered(plain, exact) > tol  # the defect: local control, global error above
+    print(f"asked {tol:g} (time share {budget:g}): delivered {delivered:.2e}, estimated "
+          f"{estimated:.2e}, runs {check['runs']}")
     assert check["converged"] and set(check["estimates"]) == set(exact)
-    assert delivered <= budget <= tol
-    assert estimated >= delivered  # the reported estimate is an upper bound here
+    assert delivered <= budget <= tol  # measured 2.5e-4 (3.2e-4 against rtol 1e-6)
+    assert estimated >= delivered  # measured 4.9e-4: the reported estimate bounds it
     assert check["runs"][-1]["rtol"] < check["runs"][0]["rtol"]  # the answer is the tighter
 
 
