@@ -368,6 +368,24 @@ def _delivered(values: dict, exact: dict) -> float:
     return max(abs(values[k] - exact[k]) / scales[k] for k in exact)
 
 
+@pytest.mark.parametrize("exponent", [0.5, 2 / 3, 1.0])
+def test_time_estimate_bounds_errors_that_fall_with_the_tolerance(exponent):
+    """f(tol) = f* + C tol^a for the exponents a of BE-restarted BDF2 (1/2), of BDF2 with
+    error-per-step control (2/3) and of tolerance proportionality (1): the estimate of the
+    tighter of two runs 4x apart, with the assumed a = 1/2, bounds its true error (by the
+    safety factor 1.25 at a = 1/2 exactly)."""
+    from fingertip_dolfinx.solver import time_estimates
+
+    def f(tol):
+        return {"x": 1.0 + 0.3 * tol**exponent, "y": 2.0 - 0.5 * tol**exponent}
+
+    for tol in (1e-2, 1e-4):
+        estimate = time_estimates(f(tol), f(tol / 4), 4.0)
+        for key, exact in (("x", 1.0), ("y", 2.0)):
+            true = abs(f(tol / 4)[key] - exact) / abs(f(tol / 4)[key])
+            assert true <= estimate[key] <= (1.3 if exponent == 0.5 else 4.0) * true
+
+
 def test_a_tolerance_asked_of_the_outputs_is_delivered():
     """The tolerance-driven control (the time share of tol; its steps checked against a run 4
     times tighter, rtol and atol alike) delivers the outputs within the time share, and its
