@@ -1,5 +1,11 @@
-"""Ask for an accuracy, get it: refine the mesh where the key outputs need it until the
-estimated error of every key output (`studies.keys.KEYS`) is below a tolerance.
+"""Ask for an accuracy, get it: refine the mesh where the key outputs need it and control the
+time steps until the estimated error of every key output (`studies.keys.KEYS`) is below a
+tolerance.
+
+The tolerance is split (`AdaptOptions.time_share`, 25 %): the mesh must reach tol_space =
+tol (1 − time_share), the time stepping tol_time = tol time_share; the two estimates add.
+Every level runs with the steps of `solver.tolerance_steps(tol_time)` (error-controlled BDF2,
+rtol and atol scaled with it); after the mesh loop, step 5 checks the time error.
 
 The loop (`adapt`), level k = 0, 1, ...:
 
@@ -24,7 +30,7 @@ The loop (`adapt`), level k = 0, 1, ...:
    0.3 mm around the depth-curve peak for e_max and for SED) on the two meshes themselves. A
    region left alone (its outputs already within safety * tol) keeps its estimate plus the
    change its outputs saw.
-3. **Stop** when every estimate is <= tol (converged), or after `max_levels` runs, or when the
+3. **Stop** when every estimate is <= tol_space (converged), or after `max_levels` runs, or when the
    next mesh would exceed `max_dofs` or the floor stops a region's refinement, saying which
    outputs missed and by how much.
 4. **Indicate and size** the next mesh (`next_sizes`): the Zienkiewicz–Zhu indicator
@@ -49,10 +55,17 @@ The loop (`adapt`), level k = 0, 1, ...:
    30 % per mm, as the scene's own fields do. The map is handed to gmsh as a size callback
    that combines with the scene's fields by min (`mesh.build_mesh(..., size=)`).
 
-Files: `out/level-<k>/` (a normal run each, plus `size_map.npz` for k > 0), the finest level's
-files copied to `out/`, `out/adapt.json` (per level: cells, dofs, wall time, key outputs,
-estimates, ratios, the next level's plan; the mesh settled on; the total cost) and an
-`adaptivity` table in `out/summary.json`. Under MPI the runs use every rank; the indicator and
+5. **Check the time error** (`check_time`, `solver.verify_time`): the finest mesh again with
+   rtol and atol 4 times tighter (and more, up to `max_time_runs` runs), the time error of
+   every key output estimated from the difference, E = 1.25 |f_k - f_(k-1)| / (r^a - 1) / |f|
+   with a = 1/2 (the error's exponent in the tolerance, measured); the tightest run is the
+   answer published.
+
+Files: `out/level-<k>/` (a normal run each, plus `size_map.npz` for k > 0),
+`out/level-<k>-time-<i>/` (the time check's runs), the answer's files copied to `out/`,
+`out/adapt.json` (per level: cells, dofs, wall time, key outputs, estimates, ratios, the next
+level's plan; the time check's runs; the space, time and total estimates; the mesh settled on;
+the total cost) and an `adaptivity` table in `out/summary.json`. Under MPI the runs use every rank; the indicator and
 the sizes are computed on rank 0 (2 ranks reproduce 1 rank's meshes and values).
 """
 
@@ -528,8 +541,9 @@ def check_time(scene, final: dict, out: Path, options: AdaptOptions, say, comm) 
 def adapt(scene, out: str | Path, options: AdaptOptions | None = None, *,
           progress: bool = True, comm: MPI.Comm | None = None) -> dict:
     """Run `scene` on adapted meshes into `out` until every key output's estimated relative
-    error is <= options.tol (module docstring). Returns adapt.json's content; `out` holds the
-    finest level's files as a normal run (summary.json with an `adaptivity` table).
+    error, the mesh's plus the time stepping's, is <= options.tol (module docstring). Returns
+    adapt.json's content; `out` holds the answer's files as a normal run (summary.json with an
+    `adaptivity` table): the finest mesh at the tightest step tolerances of the time check.
 
     Without `options`: tol and max_levels from the scene's `[accuracy]` table (tol 0.01 if it
     has none). A level whose run fails raises `ConvergenceError` after the files are written.
