@@ -65,8 +65,9 @@ Files: `out/level-<k>/` (a normal run each, plus `size_map.npz` for k > 0),
 `out/level-<k>-time-<i>/` (the time check's runs), the answer's files copied to `out/`,
 `out/adapt.json` (per level: cells, dofs, wall time, key outputs, estimates, ratios, the next
 level's plan; the time check's runs; the space, time and total estimates; the mesh settled on;
-the total cost) and an `adaptivity` table in `out/summary.json`. Under MPI the runs use every rank; the indicator and
-the sizes are computed on rank 0 (2 ranks reproduce 1 rank's meshes and values).
+the total cost) and an `adaptivity` table in `out/summary.json`. Under MPI the runs use every
+rank; the indicator and the sizes are computed on rank 0 (2 ranks reproduce 1 rank's meshes
+and values).
 """
 
 from __future__ import annotations
