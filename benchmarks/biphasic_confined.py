@@ -27,7 +27,6 @@ import biphasic_common
 from fingertip_dolfinx.studies.problems import ConfinedRelaxation
 
 
-
 def issue_column(solid) -> ConfinedRelaxation:
     """k0 = 10 mm⁴/(N·s), 20 % in 100 s, held to 3000 s (times in units of t_c)."""
     tc = ConfinedRelaxation(solid=solid, k0=10.0, strain=0.2).consolidation_time

@@ -46,12 +46,12 @@ multistep weights are `fem.Constant`s the problem updates in place.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time as wallclock
 import warnings
 from collections import deque
 from collections.abc import Callable, Sequence
-import dataclasses
 from dataclasses import asdict, dataclass, field
 from typing import Protocol
 
