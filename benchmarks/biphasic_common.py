@@ -293,8 +293,9 @@ def chart(rows: list[dict], path: Path, title: str) -> None:
 # --- a tolerance asked, a tolerance delivered -------------------------------------------------
 
 #: Output times of the asked-vs-delivered mode: the ramp's middle and end, then t0 (1 + s) for s
-#: spread geometrically from 0.01 ("right after the ramp") to the end of the hold.
+#: spread geometrically from AFTER ("right after the ramp"; `--after`) to the end of the hold.
 OUTPUTS_IN_HOLD = 14
+AFTER = 0.01
 #: The reference of the asked-vs-delivered mode: the error-controlled BDF2 stepper at rtol
 #: 1e-7 (and 1e-6 for its own error), atol 1e-12 mm/MPa, Newton to 1e-15 N/mm. The Richardson
 #: reference of the cost table is off by ~1e-3 right after the ramp (its own estimate, m = 128):
@@ -303,18 +304,19 @@ TIGHT_RTOL = 1e-7
 TIGHT_PETSC = {"snes_rtol": 1e-12, "snes_atol": 1e-15, "snes_max_it": 30}
 
 
-def output_times(problem: PlatenRelaxation) -> np.ndarray:
+def output_times(problem: PlatenRelaxation, first: float = AFTER) -> np.ndarray:
     h = problem.history
     t0 = h.ramp_time
-    after = t0 * (1 + np.geomspace(0.01, (h.end_time - t0) / t0, OUTPUTS_IN_HOLD))
+    after = t0 * (1 + np.geomspace(first, (h.end_time - t0) / t0, OUTPUTS_IN_HOLD))
     after[-1] = h.end_time
     return np.concatenate([[0.5 * t0, t0], after])
 
 
 def sampled(problem: PlatenRelaxation, n: int, grading: float, options: StepOptions,
-            petsc: dict, prefix: str) -> tuple[RelaxationRun, np.ndarray, np.ndarray]:
+            petsc: dict, prefix: str, first: float = AFTER
+            ) -> tuple[RelaxationRun, np.ndarray, np.ndarray]:
     """A run that lands on `output_times`, and its force and core pressure there."""
-    times = output_times(problem)
+    times = output_times(problem, first)
     run = run_relaxation(problem, problem.block(n, grading), options, petsc,
                          sample_times=times[:-1], prefix=prefix)
     index = [run.at(t) for t in times]
@@ -325,17 +327,19 @@ class TightReference:
     """The force and core pressure at `output_times` from the stepper at TIGHT_RTOL, with its
     own error estimated from a run 10 times looser (`solver.time_estimates`)."""
 
-    def __init__(self, problem: PlatenRelaxation, n: int, grading: float, prefix: str):
+    def __init__(self, problem: PlatenRelaxation, n: int, grading: float, prefix: str,
+                 first: float = AFTER):
         h = problem.history
+        self.first = first
         runs = []
         for rtol in (10 * TIGHT_RTOL, TIGHT_RTOL):
             options = StepOptions(control="error", scheme="bdf2", rtol=rtol, atol=1e-5 * rtol,
                                   dt_initial=1e-3 * h.ramp_time, dt_min=1e-12 * h.ramp_time,
                                   dt_max=h.end_time)
             runs.append(sampled(problem, n, grading, options, TIGHT_PETSC,
-                                f"{prefix}tight{len(runs)}_"))
+                                f"{prefix}tight{len(runs)}_", first))
         (_, F1, p1), (run, self.force, self.pressure) = runs
-        self.steps, self.times = run.steps, output_times(problem)
+        self.steps, self.times = run.steps, output_times(problem, first)
         self.F_peak, self.p_peak = np.max(np.abs(self.force)), np.max(np.abs(self.pressure))
         scales = {**{f"F{i}": self.F_peak for i in range(len(F1))},
                   **{f"p{i}": self.p_peak for i in range(len(p1))}}
@@ -358,7 +362,8 @@ def asked_vs_delivered(problem: PlatenRelaxation, ref: TightReference, n: int, g
     last = {}
 
     def run(options: StepOptions, i: int) -> dict[str, float]:
-        r, force, pressure = sampled(problem, n, grading, options, PETSC, f"{prefix}{i}_")
+        r, force, pressure = sampled(problem, n, grading, options, PETSC, f"{prefix}{i}_",
+                                     ref.first)
         last.update(run=r, force=force, pressure=pressure)
         return {**{f"force@{t:.6g}": v for t, v in zip(times, last["force"])},
                 **{f"pressure@{t:.6g}": v for t, v in zip(times, last["pressure"])}}
@@ -370,7 +375,7 @@ def asked_vs_delivered(problem: PlatenRelaxation, ref: TightReference, n: int, g
 
     budget = TIME_SHARE * tol
     check = verify_time(run, tolerance_steps(budget, base), budget, scales=scales)
-    after = 2  # t0 (1 + 0.01)
+    after = 2  # t0 (1 + first)
     row = {"asked": tol, "time_budget": budget, "runs": len(check["runs"]),
            "rtols": [r["rtol"] for r in check["runs"]], "steps": last["run"].steps,
            "wall_time_s": last["run"].wall_time_s, "converged": check["converged"],
@@ -384,14 +389,14 @@ def asked_vs_delivered(problem: PlatenRelaxation, ref: TightReference, n: int, g
                     f"{q}_delivered_after_ramp": float(delivered[after])})
     # local error control alone at rtol = tol (the other options at their defaults)
     _, force, pressure = sampled(problem, n, grading, StepOptions(
-        control="error", scheme="bdf2", rtol=tol), PETSC, f"{prefix}local_")
+        control="error", scheme="bdf2", rtol=tol), PETSC, f"{prefix}local_", ref.first)
     row["local_only_force"] = float(np.max(np.abs(force - ref.force)) / ref.F_peak)
     row["local_only_pressure"] = float(np.max(np.abs(pressure - ref.pressure)) / ref.p_peak)
     return row
 
 
 def tolerance_table(make_problem, name: str, n: int, grading: float, asked,
-                    out: Path, nus=NUS) -> list[dict]:
+                    out: Path, nus=NUS, first: float = AFTER) -> list[dict]:
     """Per ν and per tolerance asked: asked, what the control estimated, what it delivered
     against the reference, and what local error control alone at rtol = tol delivers (printed
     as a Markdown table, written to NAME_tolerance.csv)."""
@@ -399,7 +404,7 @@ def tolerance_table(make_problem, name: str, n: int, grading: float, asked,
     for nu in nus:
         problem = make_problem(solid(nu))
         tag = f"{name}_nu{nu:g}_".replace(".", "p")
-        ref = TightReference(problem, n, grading, tag)
+        ref = TightReference(problem, n, grading, tag, first)
         print(f"\n{name}, nu = {nu:g}: reference {ref.steps} steps, its own error "
               f"{ref.error[0]:.1e} (force), {ref.error[1]:.1e} (pressure)", flush=True)
         for tol in asked:
@@ -445,6 +450,9 @@ def main(make_problem, name: str, doc: str, issue=None) -> None:
                         help="relative tolerances asked of the force and core pressure "
                         "histories (e.g. 1e-2 1e-3 1e-4): per tolerance, the tolerance-driven "
                         "time control and what it delivered against the reference")
+    parser.add_argument("--after", type=float, default=AFTER, metavar="S",
+                        help="with --asked: the first output after the ramp at t0 (1 + S) "
+                        f"(default {AFTER})")
     if issue is not None:
         parser.add_argument("--issue", action="store_true", help="with --asked: the column "
                             "of the issue that asked for it instead (k0 = 10 mm^4/(N s), 20 %% "
@@ -456,6 +464,7 @@ def main(make_problem, name: str, doc: str, issue=None) -> None:
     if args.asked:
         print(TOLERANCE_HEADER.split("\n")[0], flush=True)
         tolerance_table(make_problem, name, n, 10.0, args.asked, args.out,
-                        nus=(mat.SUBCUTANEOUS.nu,) if getattr(args, "issue", False) else NUS)
+                        nus=(mat.SUBCUTANEOUS.nu,) if getattr(args, "issue", False) else NUS,
+                        first=args.after)
         return
     benchmark(make_problem, name, n, 10.0, Ns, m_ref, args.out)
