@@ -529,8 +529,9 @@ def check_time(scene, final: dict, out: Path, options: AdaptOptions, say, comm) 
         entry["run"] = str(run_dir)
         if summary is not None:
             entry.update(time_steps=summary["time_steps"], wall_time_s=summary["wall_time_s"])
-    say(f"time check: largest estimated time error "
-        f"{max(check['estimates'].values()):.3%} after {len(check['runs'])} runs")
+    failed = check["runs"][-1].get("failed")
+    say(f"time check: largest estimated time error {max(check['estimates'].values()):.3%} "
+        f"after {len(check['runs'])} runs" + (f"; the last failed: {failed}" if failed else ""))
     return {"budget": options.time_tol, "converged": check["converged"],
             "estimated_time_errors": check["estimates"], "values": check["values"],
             "runs": check["runs"], "published": str(dirs[-1]),

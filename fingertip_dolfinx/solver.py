@@ -894,19 +894,29 @@ def verify_time(run: Callable[[StepOptions, int], dict[str, float]], options: St
     than run 0; a later one tightens the last by (E/(budget/2))^(1/a) (between 2 and 16), E its
     largest estimate. Returns the last run's `values`, its `estimates`, `converged`, and per
     run its rtol, atol and largest estimate (`runs`). The last run is the answer: the earlier
-    ones only measure its error."""
+    ones only measure its error.
+
+    A tighter run that fails (a `ConvergenceError`: e.g. a tolerance below what Newton's own
+    accuracy can tell) ends the check unconverged, its message in its entry (`failed`); the
+    answer is then the last run that finished, with the last estimate (inf after run 0)."""
     values = run(options, 0)
     runs = [{"rtol": options.rtol, "atol": options.atol, "largest_estimate": None}]
-    factor = TIGHTEN
+    estimates, worst, factor, answer = {k: math.inf for k in values}, math.inf, TIGHTEN, options
     while True:
-        options, before = tightened(options, factor), values
-        values = run(options, len(runs))
-        estimates = time_estimates(before, values, factor,
-                                   None if scales is None else scales(values))
-        worst = max(estimates.values(), default=0.0)
-        runs.append({"rtol": options.rtol, "atol": options.atol, "largest_estimate": worst})
+        tighter = tightened(answer, factor)
+        try:
+            fresh = run(tighter, len(runs))
+        except ConvergenceError as error:
+            runs.append({"rtol": tighter.rtol, "atol": tighter.atol, "largest_estimate": None,
+                         "failed": str(error)})
+            return {"values": values, "estimates": estimates, "converged": False,
+                    "budget": budget, "options": answer, "runs": runs}
+        estimates = time_estimates(values, fresh, factor,
+                                   None if scales is None else scales(fresh))
+        values, answer, worst = fresh, tighter, max(estimates.values(), default=0.0)
+        runs.append({"rtol": answer.rtol, "atol": answer.atol, "largest_estimate": worst})
         if worst <= budget or len(runs) >= max_runs:
             break
         factor = min(16.0, max(2.0, (worst / (0.5 * budget)) ** (1 / TOLERANCE_EXPONENT)))
     return {"values": values, "estimates": estimates, "converged": worst <= budget,
-            "budget": budget, "options": options, "runs": runs}
+            "budget": budget, "options": answer, "runs": runs}

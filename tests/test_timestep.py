@@ -386,6 +386,36 @@ def test_time_estimate_bounds_errors_that_fall_with_the_tolerance(exponent):
             assert true <= estimate[key] <= (1.3 if exponent == 0.5 else 4.0) * true
 
 
+def test_time_check_tightens_until_within_budget_and_survives_a_failed_run():
+    """An output whose error is 0.3 tol^(1/2): from rtol 1e-3 the estimate after the first
+    check (5.9e-3) is above a 1e-3 budget, so a third run tightens by (E/(budget/2))^2, at
+    most 16, and a fourth once more; when the third run fails (a tolerance Newton cannot resolve), the check ends unconverged with the last
+    finished run as the answer and the failure recorded, instead of losing everything."""
+    from fingertip_dolfinx.errors import ConvergenceError
+    from fingertip_dolfinx.solver import verify_time
+
+    def run(options, i):
+        return {"f": 1.0 + 0.3 * math.sqrt(options.rtol)}
+
+    start = StepOptions(control="error", scheme="bdf2", rtol=1e-3, atol=1e-6)
+    check = verify_time(run, start, 1e-3)
+    rtols = [r["rtol"] for r in check["runs"]]
+    assert check["converged"] and len(rtols) == 4 and rtols[1] == pytest.approx(2.5e-4)
+    assert rtols[2] == pytest.approx(rtols[1] / 16) and rtols[3] < rtols[2] / 2
+    true = 0.3 * math.sqrt(rtols[3])
+    assert true <= check["estimates"]["f"] <= 1e-3
+
+    def failing(options, i):
+        if i == 2:
+            raise ConvergenceError("below Newton's accuracy")
+        return run(options, i)
+
+    check = verify_time(failing, start, 1e-3)
+    assert not check["converged"] and "Newton" in check["runs"][-1]["failed"]
+    assert check["options"].rtol == pytest.approx(2.5e-4)  # the last run that finished
+    assert check["values"] == run(check["options"], 1) and check["estimates"]["f"] > 1e-3
+
+
 def test_a_tolerance_asked_of_the_outputs_is_delivered():
     """The tolerance-driven control (the time share of tol; its steps checked against a run 4
     times tighter, rtol and atol alike) delivers the outputs within the time share, and its
