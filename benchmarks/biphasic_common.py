@@ -23,6 +23,12 @@ points (PCHIP, monotone) where needed. The reference's own error (from the ramp'
 estimated from m = 64, 128 against 128, 256. Every run uses the same mesh: these are time
 errors. The limits (undrained start, drained end) are homogeneous states that P2/P1 holds
 exactly: their errors are in the table, against the closed forms.
+
+`--asked TOL ...` (`tolerance_table`): per tolerance asked, the tolerance-driven time control
+(`solver.tolerance_steps` for its time share, checked by `solver.verify_time`), its estimate and
+what it delivered at the output times (`output_times`) against a tight reference of the same
+mesh (`TightReference`), beside local error control alone at rtol = TOL
+(docs/benchmarks/tolerance.md).
 """
 
 from __future__ import annotations
