@@ -743,11 +743,11 @@ def _report(levels, options, stop, failure, started, cpu, comm, scene, timing=No
                   for key in KEYS if total[key] > options.tol]
         message = (f"{scene.name}: not converged to tol = {options.tol:.3g} ({stop}): "
                    f"estimated {', '.join(missed) or 'within tol, but the time check did not'}"
-                   f" ; the last level has {final['cells']} cells, {final['dofs']} dofs.")
+                   f"; the last level has {final['cells']} cells, {final['dofs']} dofs.")
     else:
         message = f"{scene.name}: no estimate ({stop})."
     walls = [lv["wall_time_s"] for lv in levels]
-    checks = [r["wall_time_s"] for r in timing["runs"][1:]] if timing else []
+    checks = [r["wall_time_s"] for r in timing["runs"] if "wall_time_s" in r] if timing else []
     return {
         "scene": scene.name, "tol": options.tol, "tol_space": options.space_tol,
         "tol_time": options.time_tol if timing else None, "converged": converged,
