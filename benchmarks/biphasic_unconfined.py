@@ -10,11 +10,14 @@ the end of the fast ramp the core is undrained, J = 1 and p = τ1(1/λ, λ, 1)
 with the lateral stretch from τ1 = 0 (`unconfined_drained_state`; ν = 0: no lateral
 expansion at all).
 
+`--asked TOL [TOL ...]`: per tolerance asked, the tolerance-driven time control, what it
+estimated and what it delivered against a tight reference (biphasic_confined.py).
+
 Prints per run: steps, Newton iterations, wall time of the stepping, the force and pressure
 histories' errors against a Richardson reference and the limits against the closed forms;
 writes NAME.csv and the chart of error against wall time (PNG) into --out.
 
-    .venv/bin/python benchmarks/biphasic_unconfined.py [--out DIR] [--coarse]
+    .venv/bin/python benchmarks/biphasic_unconfined.py [--out DIR] [--coarse] [--asked TOL ...]
 """
 
 import biphasic_common

@@ -1,5 +1,11 @@
-"""Ask for an accuracy, get it: refine the mesh where the key outputs need it until the
-estimated error of every key output (`studies.keys.KEYS`) is below a tolerance.
+"""Ask for an accuracy, get it: refine the mesh where the key outputs need it and control the
+time steps until the estimated error of every key output (`studies.keys.KEYS`) is below a
+tolerance.
+
+The tolerance is split (`AdaptOptions.time_share`, 25 %): the mesh must reach tol_space =
+tol (1 − time_share), the time stepping tol_time = tol time_share; the two estimates add.
+Every level runs with the steps of `solver.tolerance_steps(tol_time)` (error-controlled BDF2,
+rtol and atol scaled with it); after the mesh loop, step 5 checks the time error.
 
 The loop (`adapt`), level k = 0, 1, ...:
 
@@ -24,7 +30,7 @@ The loop (`adapt`), level k = 0, 1, ...:
    0.3 mm around the depth-curve peak for e_max and for SED) on the two meshes themselves. A
    region left alone (its outputs already within safety * tol) keeps its estimate plus the
    change its outputs saw.
-3. **Stop** when every estimate is <= tol (converged), or after `max_levels` runs, or when the
+3. **Stop** when every estimate is <= tol_space (converged), or after `max_levels` runs, or when the
    next mesh would exceed `max_dofs` or the floor stops a region's refinement, saying which
    outputs missed and by how much.
 4. **Indicate and size** the next mesh (`next_sizes`): the Zienkiewicz–Zhu indicator
@@ -49,9 +55,17 @@ The loop (`adapt`), level k = 0, 1, ...:
    30 % per mm, as the scene's own fields do. The map is handed to gmsh as a size callback
    that combines with the scene's fields by min (`mesh.build_mesh(..., size=)`).
 
-Files: `out/level-<k>/` (a normal run each, plus `size_map.npz` for k > 0), the finest level's
-files copied to `out/`, `out/adapt.json` (per level: cells, dofs, wall time, key outputs and
-the times they were read at, estimates, ratios, the next level's plan; the mesh settled on;
+5. **Check the time error** (`check_time`, `solver.verify_time`): the finest mesh again with
+   rtol and atol 4 times tighter (and more, up to `max_time_runs` runs), the time error of
+   every key output estimated from the difference, E = 1.25 |f_k - f_(k-1)| / (r^a - 1) / |f|
+   with a = 1/2 (the error's exponent in the tolerance, measured); the tightest run is the
+   answer published.
+
+Files: `out/level-<k>/` (a normal run each, plus `size_map.npz` for k > 0),
+`out/level-<k>-time-<i>/` (the time check's runs), the answer's files copied to `out/`,
+`out/adapt.json` (per level: cells, dofs, wall time, key outputs and the times they were read
+at, estimates, ratios, the next level's plan; the time check's runs; the space, time and total
+estimates; the mesh settled on;
 the total cost) and an `adaptivity` table in `out/summary.json`. Under MPI the runs use every
 rank; the indicator and the sizes are computed on rank 0 (2 ranks reproduce 1 rank's meshes
 and values).
@@ -73,6 +87,7 @@ from mpi4py import MPI
 from .errors import ConvergenceError, InputError
 from .mesh import SIZE_GROWTH, SizeMap
 from .post import depth_curve
+from .solver import TIME_SHARE, tolerance_steps, verify_time
 from .studies.keys import DEFLECTION_POINTS, KEY_OUTPUTS, KEYS, check_scene, key_outputs, read_key
 
 #: |x| (mm) of the farthest surface deflection among the key outputs.
@@ -103,7 +118,11 @@ class AdaptOptions:
     beyond the 3 mm deflections (or each indenter's footprint), and this deep;
     weight_length: decay length (mm) of the indicator's weight outside the regions; floor:
     the smallest size (mm; default `default_floor`);
-    max_dofs: stop before a level would exceed this many unknowns (estimated).
+    max_dofs: stop before a level would exceed this many unknowns (estimated);
+    time_share: the share of tol that goes to the time error (`solver.TIME_SHARE`; the mesh
+    gets tol (1 - time_share)), 0 to leave the scene's step control alone and refine the mesh
+    to the whole tol (the time error then neither controlled nor estimated);
+    max_time_runs: runs of the finest mesh at most in the time check (the first is its level).
     """
 
     tol: float = 0.01
@@ -119,6 +138,8 @@ class AdaptOptions:
     weight_length: float = 1.0
     floor: float | None = None
     max_dofs: int | None = None
+    time_share: float = TIME_SHARE
+    max_time_runs: int = 4
 
     def __post_init__(self):
         for key in ("tol", "coarsen", "order", "safety", "first_ratio", "min_ratio",
@@ -143,6 +164,23 @@ class AdaptOptions:
                              "use 1 < min_ratio <= max_ratio <= 4 and first_ratio > 1.")
         if self.safety > 1:
             raise InputError("adaptivity: safety", f"got {self.safety}.", "give (0, 1].")
+        if isinstance(self.time_share, bool) or not (
+                isinstance(self.time_share, int | float) and 0 <= self.time_share < 1):
+            raise InputError("adaptivity: time_share", f"got {self.time_share!r}.",
+                             "give a fraction in [0, 1), e.g. 0.25 (0: the mesh only).")
+        if not (isinstance(self.max_time_runs, int) and self.max_time_runs >= 2):
+            raise InputError("adaptivity: max_time_runs", f"got {self.max_time_runs!r}: a "
+                             "time-error estimate needs two runs.", "give an integer >= 2.")
+
+    @property
+    def space_tol(self) -> float:
+        """The mesh's share of tol."""
+        return self.tol * (1.0 - self.time_share)
+
+    @property
+    def time_tol(self) -> float:
+        """The time error's share of tol."""
+        return self.tol * self.time_share
 
 
 # --- the indicator ------------------------------------------------------------------------------
@@ -448,11 +486,63 @@ def _with_size_map(scene, path: Path):
     return dataclasses.replace(scene, section=dataclasses.replace(scene.section, mesh=mesh))
 
 
+def timed_scene(scene, options: AdaptOptions):
+    """The scene with the steps of the time budget (`solver.tolerance_steps`), or as it is
+    (time_share 0). A dynamic scene has no error estimate for its scheme: refused."""
+    if options.time_share == 0:
+        return scene
+    if scene.steps.scheme == "generalized-alpha":
+        raise InputError(f"{scene.name}: steps.scheme", "a tolerance controls the time error "
+                         "by error-controlled BDF2 steps, which have no error estimate for the "
+                         "generalized-alpha scheme of a dynamic run.",
+                         "set the accuracy in time by steps.steps_per_period and adapt the mesh "
+                         "alone: ft.adapt(scene, out, ft.AdaptOptions(tol=..., time_share=0)).")
+    steps = tolerance_steps(options.time_tol, scene.steps)
+    return dataclasses.replace(scene, steps=steps)
+
+
+def check_time(scene, final: dict, out: Path, options: AdaptOptions, say, comm) -> dict:
+    """The time check of the finest mesh (`solver.verify_time`): its level's run against runs
+    with tolerances 4 (and more) times tighter, until every key output's estimated time error
+    is within options.time_tol. Run i > 0 goes to `out/<level>-time-<i>/`; the last is the
+    answer published. Returns adapt.json's `time` table."""
+    from .runner import run_scene
+
+    dirs, summaries = [Path(final["run"])], []
+
+    def run(steps, i: int) -> dict[str, float]:
+        if i == 0:
+            return final["values"]
+        run_dir = out / f"{Path(final['run']).name}-time-{i}"
+        say(f"time check {i}: the finest mesh at steps.rtol = {steps.rtol:.3g}")
+        summaries.append(run_scene(dataclasses.replace(scene, steps=steps), run_dir,
+                                   progress=False, comm=comm))
+        dirs.append(run_dir)
+        values = key_outputs(run_dir) if comm.rank == 0 else None
+        return comm.bcast({key: values[key] for key in KEYS} if values else None, root=0)
+
+    check = verify_time(run, scene.steps, options.time_tol, max_runs=options.max_time_runs)
+    for entry, run_dir, summary in zip(check["runs"], dirs, [None, *summaries]):
+        entry["run"] = str(run_dir)
+        if summary is not None:
+            entry.update(time_steps=summary["time_steps"], wall_time_s=summary["wall_time_s"])
+    failed = check["runs"][-1].get("failed")
+    say(f"time check: largest estimated time error {max(check['estimates'].values()):.3%} "
+        f"after {len(check['runs'])} runs" + (f"; the last failed: {failed}" if failed else ""))
+    return {"budget": options.time_tol, "converged": check["converged"],
+            "estimated_time_errors": check["estimates"], "values": check["values"],
+            "runs": check["runs"], "published": str(dirs[-1]),
+            "method": ("key outputs of the finest mesh at steps.rtol and steps.atol divided by "
+                       "4 (and more): E = 1.25 |f_fine - f_coarse| / (r^a - 1) / |f_fine|, "
+                       "a = 1/2 (solver.verify_time)")}
+
+
 def adapt(scene, out: str | Path, options: AdaptOptions | None = None, *,
           progress: bool = True, comm: MPI.Comm | None = None) -> dict:
     """Run `scene` on adapted meshes into `out` until every key output's estimated relative
-    error is <= options.tol (module docstring). Returns adapt.json's content; `out` holds the
-    finest level's files as a normal run (summary.json with an `adaptivity` table).
+    error, the mesh's plus the time stepping's, is <= options.tol (module docstring). Returns
+    adapt.json's content; `out` holds the answer's files as a normal run (summary.json with an
+    `adaptivity` table): the finest mesh at the tightest step tolerances of the time check.
 
     Without `options`: tol and max_levels from the scene's `[accuracy]` table (tol 0.01 if it
     has none). A level whose run fails raises `ConvergenceError` after the files are written.
@@ -470,7 +560,8 @@ def adapt(scene, out: str | Path, options: AdaptOptions | None = None, *,
     check_scene(scene, f"{scene.name}: the adaptive loop (--tol)")
     out = Path(out)
     started, cpu = time.perf_counter(), time.process_time()
-    base = start_scene(scene, options)
+    base = timed_scene(start_scene(scene, options), options)
+    asked, options = options, dataclasses.replace(options, tol=options.space_tol)
     floor = options.floor or default_floor(base)
     say = _say(progress and comm.rank == 0)
     levels, data, failure, stop = [], [], None, ""
@@ -523,9 +614,15 @@ def adapt(scene, out: str | Path, options: AdaptOptions | None = None, *,
                     f"{options.max_dofs}")
             break
         level_scene = _with_size_map(base, (out / f"level-{k + 1}" / "size_map.npz").resolve())
-    report = _report(levels, options, stop, failure, started, cpu, comm, scene)
+    timing = None
+    if levels and failure is None and asked.time_share > 0:
+        try:
+            timing = check_time(level_scene, levels[-1], out, asked, say, comm)
+        except ConvergenceError as error:
+            failure, stop = str(error), f"the time check failed: {error}"
+    report = _report(levels, asked, stop, failure, started, cpu, comm, scene, timing)
     if levels:
-        _publish(out, levels[-1], report, comm)
+        _publish(out, timing["published"] if timing else levels[-1]["run"], report, comm)
     say(report["message"])
     if failure is not None:
         raise ConvergenceError(f"adaptive loop: {failure}")
@@ -622,35 +719,51 @@ def _plan_next(k: int, levels: list, data: list, options: AdaptOptions, floor: f
             "smallest_size_mm": float(sizes.min())}
 
 
-def _report(levels, options, stop, failure, started, cpu, comm, scene) -> dict:
+def _report(levels, options, stop, failure, started, cpu, comm, scene, timing=None) -> dict:
+    """adapt.json's content. Per key output the estimated errors of the mesh (`space`), of the
+    time stepping (`time`, None if not controlled) and their sum (`estimated_errors`, what is
+    held against tol)."""
     final = levels[-1] if levels else None
     estimates = final.get("estimates") if final else None
-    converged = bool(estimates) and failure is None and all(
-        estimates[key]["error"] <= options.tol for key in KEYS)
+    space = {key: estimates[key]["error"] for key in KEYS} if estimates else None
+    times = timing["estimated_time_errors"] if timing else None
+    total = ({key: space[key] + (times[key] if times else 0.0) for key in KEYS}
+             if space else None)
+    converged = bool(space) and failure is None and all(
+        total[key] <= options.tol for key in KEYS) and (timing is None or timing["converged"])
+    what = "space and time" if timing else "the mesh alone; time not controlled"
     if converged:
-        message = (f"{scene.name}: every key output within {options.tol:.3g} (estimated) after "
-                   f"{len(levels)} levels; the finest has {final['cells']} cells, "
-                   f"{final['dofs']} dofs.")
-    elif estimates:
-        missed = [f"{key} {estimates[key]['error']:.3%}" for key in KEYS
-                  if estimates[key]["error"] > options.tol]
+        message = (f"{scene.name}: every key output within {options.tol:.3g} (estimated; "
+                   f"{what}) after {len(levels)} levels; the finest has {final['cells']} "
+                   f"cells, {final['dofs']} dofs.")
+    elif space:
+        missed = [f"{key} {total[key]:.3%}" + (f" (space {space[key]:.3%}, time "
+                                                f"{times[key]:.3%})" if times else "")
+                  for key in KEYS if total[key] > options.tol]
         message = (f"{scene.name}: not converged to tol = {options.tol:.3g} ({stop}): "
-                   f"estimated {', '.join(missed)}; the last level has {final['cells']} cells, "
-                   f"{final['dofs']} dofs.")
+                   f"estimated {', '.join(missed) or 'within tol, but the time check did not'}"
+                   f"; the last level has {final['cells']} cells, {final['dofs']} dofs.")
     else:
         message = f"{scene.name}: no estimate ({stop})."
     walls = [lv["wall_time_s"] for lv in levels]
+    checks = [r["wall_time_s"] for r in timing["runs"] if "wall_time_s" in r] if timing else []
     return {
-        "scene": scene.name, "tol": options.tol, "converged": converged, "stop": stop,
-        "message": message, "failure": failure, "options": dataclasses.asdict(options),
-        "estimated_errors": ({key: estimates[key]["error"] for key in KEYS}
-                             if estimates else None),
+        "scene": scene.name, "tol": options.tol, "tol_space": options.space_tol,
+        "tol_time": options.time_tol if timing else None, "converged": converged,
+        "stop": stop, "message": message, "failure": failure,
+        "options": dataclasses.asdict(options),
+        "estimated_errors": total, "estimated_space_errors": space,
+        "estimated_time_errors": times,
+        "values": timing["values"] if timing else (final["values"] if final else None),
+        "time": ({k: v for k, v in timing.items() if k not in ("values",)} if timing else
+                 {"controlled": False, "steps": "the scene's own (time_share = 0)"}),
         "mesh": ({"level": final["level"], "cells": final["cells"], "dofs": final["dofs"],
                   "min_edge_mm": final["min_edge_mm"], "max_edge_mm": final["max_edge_mm"],
                   "size_map": (str(Path(final["run"]) / "size_map.npz")
                                if final["level"] > 0 else None)} if final else None),
-        "cost": {"levels": len(levels), "wall_time_s": float(sum(walls)),
+        "cost": {"levels": len(levels), "wall_time_s": float(sum(walls) + sum(checks)),
                  "final_level_wall_time_s": walls[-1] if walls else 0.0,
+                 "time_check_wall_time_s": float(sum(checks)), "time_check_runs": len(checks),
                  "elapsed_s": time.perf_counter() - started,
                  "cpu_time_s": comm.allreduce(time.process_time() - cpu, op=MPI.SUM),
                  "mpi_ranks": comm.size},
@@ -658,10 +771,11 @@ def _report(levels, options, stop, failure, started, cpu, comm, scene) -> dict:
     }
 
 
-def _publish(out: Path, final: dict, report: dict, comm: MPI.Comm) -> None:
-    """Copy the finest level's files to `out`; write adapt.json and summary.json's table."""
+def _publish(out: Path, run: str, report: dict, comm: MPI.Comm) -> None:
+    """Copy the files of the answer's run (the finest level's, or its time check's last) to
+    `out`; write adapt.json and summary.json's table."""
     if comm.rank == 0:
-        source = Path(final["run"])
+        source = Path(run)
         for item in source.iterdir():
             if item.name == "checkpoint":
                 continue
@@ -673,7 +787,8 @@ def _publish(out: Path, final: dict, report: dict, comm: MPI.Comm) -> None:
         (out / "adapt.json").write_text(json.dumps(report, indent=1, default=_plain) + "\n")
         summary = json.loads((source / "summary.json").read_text())
         summary["adaptivity"] = {k: report[k] for k in (
-            "tol", "converged", "stop", "message", "estimated_errors", "mesh", "cost")}
+            "tol", "tol_space", "tol_time", "converged", "stop", "message", "estimated_errors",
+            "estimated_space_errors", "estimated_time_errors", "mesh", "cost")}
         summary["adaptivity"]["levels"] = [
             {k: lv[k] for k in ("level", "cells", "dofs", "wall_time_s")} for lv in
             report["levels"]]

@@ -89,9 +89,10 @@ def _add_run(subparsers) -> None:
                    help="scene: the scene's own model (default); auto: the cheapest model of "
                    "the fidelity ladder whose key outputs stay within --tol of the full model")
     p.add_argument("--tol", type=float, default=None,
-                   help="relative error every key output must reach: the mesh is refined "
-                   "where they need it (DIR/level-<k>/, the finest copied to DIR, "
-                   "DIR/adapt.json) until each estimated error is below it; with --fidelity "
+                   help="relative error every key output must reach, in space and time: the "
+                   "mesh is refined where they need it (DIR/level-<k>/, the finest copied to "
+                   "DIR, DIR/adapt.json) and the steps are checked against tighter ones until "
+                   "each estimated error is below it (docs/guide/tolerance.md); with --fidelity "
                    "auto it is the model's tolerance instead (default there: "
                    f"{AUTO_FIDELITY_TOL}) and the mesh follows the scene's [accuracy] tol")
     p.add_argument("--max-levels", type=int, default=None, metavar="N",

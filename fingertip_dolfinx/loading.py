@@ -284,8 +284,8 @@ def history_from_dict(data: dict, where: str = "protocol") -> LoadHistory:
 def step_times(breakpoints: Sequence[float], t: float, dt: float, end_time: float) -> float:
     """The next time after `t` for a step of at most `dt` that lands on every breakpoint."""
     target = min(t + dt, end_time)
-    for b in breakpoints:
-        if t + 1e-12 < b < target - 1e-12:
+    for b in breakpoints:  # the first breakpoint reached, also one the step ends on exactly
+        if t + 1e-12 < b <= target + 1e-12:  # (else the stretch below would step over it)
             return b
     # Avoid leaving a sliver of a step before a breakpoint: stretch to it if it is close.
     for b in (*breakpoints, end_time):

@@ -197,6 +197,32 @@ def test_options_are_checked():
         ad.AdaptOptions(tol=0.0)
     with pytest.raises(InputError, match="max_levels"):
         ad.AdaptOptions(max_levels=1)
+    with pytest.raises(InputError, match="time_share"):
+        ad.AdaptOptions(time_share=1.0)
+    with pytest.raises(InputError, match="max_time_runs"):
+        ad.AdaptOptions(max_time_runs=1)
+
+
+def test_a_tolerance_governs_the_time_steps_too():
+    """tol is split: the mesh gets tol (1 - time_share), the time stepping the rest, as
+    error-controlled BDF2 steps whose tolerances scale with it (the scene's own step control
+    grows steps by Newton's effort, whatever the error). A dynamic scene's scheme has no error
+    estimate: refused, with the way to adapt the mesh alone; time_share 0 keeps the scene's
+    steps."""
+    from fingertip_dolfinx.solver import ATOL_PER_RTOL, RTOL_PER_BUDGET
+
+    options = ad.AdaptOptions(tol=0.02)
+    assert options.space_tol + options.time_tol == pytest.approx(0.02)
+    assert 0 < options.time_tol < options.space_tol
+    scene = load_scene("1pt")
+    steps = ad.timed_scene(scene, options).steps
+    assert (scene.steps.control, steps.control, steps.scheme) == ("iterations", "error", "bdf2")
+    assert steps.rtol == pytest.approx(RTOL_PER_BUDGET * options.time_tol)
+    assert steps.atol == pytest.approx(ATOL_PER_RTOL * steps.rtol)
+    assert (steps.dt_max, steps.dt_initial) == (scene.steps.dt_max, scene.steps.dt_initial)
+    assert ad.timed_scene(scene, ad.AdaptOptions(time_share=0)) is scene
+    with pytest.raises(InputError, match="generalized-alpha.*time_share=0"):
+        ad.timed_scene(load_scene("vibrotactile"), options)
 
 
 def test_scene_accuracy_table():
@@ -262,16 +288,27 @@ def test_loop_stops_and_writes_a_normal_run_plus_adapt_json(loop):
     assert 2 <= report["cost"]["levels"] <= 4
     assert set(report["estimated_errors"]) == set(KEYS)
     assert all(v <= 0.05 for v in report["estimated_errors"].values())
+    # the time error: estimated from a run of the finest mesh 4x tighter, within its share
+    space, times = report["estimated_space_errors"], report["estimated_time_errors"]
+    assert set(times) == set(KEYS) and report["tol_time"] == pytest.approx(0.05 * 0.25)
+    for key in KEYS:
+        assert 0 <= times[key] <= report["tol_time"] and space[key] <= report["tol_space"]
+        assert report["estimated_errors"][key] == pytest.approx(space[key] + times[key])
+    runs = report["time"]["runs"]
+    assert len(runs) >= 2 and runs[-1]["rtol"] < runs[0]["rtol"]
+    assert report["time"]["published"] == runs[-1]["run"] != report["levels"][-1]["run"]
     result = Result(out / "loop")  # the finest level's files, read as any run
     summary = result.summary
     assert summary["adaptivity"]["converged"] and summary["adaptivity"]["tol"] == 0.05
+    assert summary["adaptivity"]["estimated_time_errors"] == report["estimated_time_errors"]
+    assert summary["scene_data"]["steps"]["rtol"] == pytest.approx(runs[-1]["rtol"])
     assert summary["adaptivity"]["mesh"]["cells"] == summary["mesh"]["cells"]
     assert summary["mesh"]["cells"] == report["levels"][-1]["cells"]
     assert summary["scene_data"]["accuracy"] == {"tol": 0.05, "max_levels": 4}
     assert summary["scene_data"]["section"]["mesh"]["min_size"] == 0.4  # level 0's
     last = len(report["levels"]) - 1
     assert (out / "loop" / f"level-{last}" / "size_map.npz").is_file()
-    assert result.force.max() == pytest.approx(report["levels"][-1]["values"]["force_N_per_mm_max_over_run"])
+    assert result.force.max() == pytest.approx(report["values"]["force_N_per_mm_max_over_run"])
     cells = [lv["cells"] for lv in report["levels"]]
     assert cells == sorted(cells) and cells[-1] > cells[0]
 

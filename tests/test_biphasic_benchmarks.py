@@ -145,3 +145,22 @@ def test_benchmark_scripts_use_error_controlled_bdf2(repo_root, monkeypatch):
         assert (options.control, options.rtol, options.scheme) == ("error", tol, "bdf2")
         assert options.atol == tol * common.ATOL_SCALE and str(tol) in label
         assert options.atol == tol * common.ATOL_SCALE and "rtol" in label
+
+
+def test_asked_mode_reads_the_outputs_where_every_run_lands(repo_root, monkeypatch):
+    """--asked: outputs at the ramp's middle and end, right after it (t0 1.01) and through the
+    hold to its end, increasing: every run lands on them, so no output is interpolated. The
+    issue's column: 20 % in 100 s, held to 3000 s."""
+    monkeypatch.syspath_prepend(str(repo_root / "benchmarks"))
+    sys.modules.pop("biphasic_common", None)
+    sys.modules.pop("biphasic_confined", None)
+    import biphasic_common as common
+    import biphasic_confined as confined
+
+    problem = confined.issue_column(_solid(0.4))
+    h = problem.history
+    assert (h.depth, h.ramp_time, h.end_time) == pytest.approx((0.2, 100.0, 3000.0))
+    assert problem.k0 == 10.0
+    t = common.output_times(problem)
+    assert t[:3] == pytest.approx([50.0, 100.0, 101.0]) and t[-1] == 3000.0
+    assert np.all(np.diff(t) > 0) and len(t) == 2 + common.OUTPUTS_IN_HOLD

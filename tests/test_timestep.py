@@ -331,3 +331,126 @@ def test_a_resumed_error_controlled_run_continues_within_the_tolerance():
     peak = max(abs(r.diagnostics["reaction"]) for r in reports)
     end = reports[-1].diagnostics["reaction"]
     assert abs(resumed[-1].diagnostics["reaction"] - end) < 2e-3 * peak
+
+
+# ---- a tolerance asked of the outputs -----------------------------------------------------------
+
+#: The column above, coarser (6 cells) and held to 1000 s; outputs at the ramp's middle and end,
+#: right after it and through the hold, every step landing on them.
+OUTPUT_TIMES = (50.0, 100.0, 101.0, 110.0, 300.0, 1000.0)
+
+
+def _column_outputs(options: StepOptions, petsc=None, prefix="outputs_") -> dict[str, float]:
+    """The force and the bottom pore pressure at OUTPUT_TIMES."""
+    ramp = RampHold(RAMP.depth, RAMP.ramp_time, OUTPUT_TIMES[-1])
+    column = ConfinedBlock(1, 6, ramp, tissue=mat.SUBCUTANEOUS_BIPHASIC, width=0.1,
+                           drained_top=True, top_displacement=True)
+    stepper = TimeStepper(column, options, petsc or {"snes_atol": 1e-14}, prefix=prefix)
+    reports = stepper.run(ramp, ramp.end_time, breakpoints=OUTPUT_TIMES[:-1])
+    stepper.close()
+    at = {r.time: r.diagnostics for r in reports}
+    out = {}
+    for t in OUTPUT_TIMES:
+        d = next(v for s, v in at.items() if abs(s - t) < 1e-9 * t)
+        out[f"force@{t:g}"], out[f"pressure@{t:g}"] = -d["reaction"], d["core_pressure"]
+    return out
+
+
+def _relative_to_peaks(values: dict[str, float]) -> dict[str, float]:
+    """Each output's scale: the peak of its history (force or pressure) over OUTPUT_TIMES."""
+    peak = {q: max(abs(v) for k, v in values.items() if k.startswith(q))
+            for q in ("force", "pressure")}
+    return {k: peak[k.split("@")[0]] for k in values}
+
+
+def _delivered(values: dict, exact: dict) -> float:
+    scales = _relative_to_peaks(exact)
+    return max(abs(values[k] - exact[k]) / scales[k] for k in exact)
+
+
+@pytest.mark.parametrize("exponent", [0.5, 2 / 3, 1.0])
+def test_time_estimate_bounds_errors_that_fall_with_the_tolerance(exponent):
+    """f(tol) = f* + C tol^a for the exponents a of BE-restarted BDF2 (1/2), of BDF2 with
+    error-per-step control (2/3) and of tolerance proportionality (1): the estimate of the
+    tighter of two runs 4x apart, with the assumed a = 1/2, bounds its true error (by the
+    safety factor 1.25 at a = 1/2 exactly)."""
+    from fingertip_dolfinx.solver import time_estimates
+
+    def f(tol):
+        return {"x": 1.0 + 0.3 * tol**exponent, "y": 2.0 - 0.5 * tol**exponent}
+
+    for tol in (1e-2, 1e-4):
+        estimate = time_estimates(f(tol), f(tol / 4), 4.0)
+        for key, exact in (("x", 1.0), ("y", 2.0)):
+            true = abs(f(tol / 4)[key] - exact) / abs(f(tol / 4)[key])
+            assert true <= estimate[key] <= (1.3 if exponent == 0.5 else 4.0) * true
+
+
+def test_time_check_tightens_until_within_budget_and_survives_a_failed_run():
+    """An output whose error is 0.3 tol^(1/2): from rtol 1e-3 the estimate after the first
+    check (5.9e-3) is above a 1e-3 budget, so a third run tightens by (E/(budget/2))^2, at
+    most 16, and a fourth once more; when the third run fails (a tolerance Newton cannot resolve), the check ends unconverged with the last
+    finished run as the answer and the failure recorded, instead of losing everything."""
+    from fingertip_dolfinx.errors import ConvergenceError
+    from fingertip_dolfinx.solver import verify_time
+
+    def run(options, i):
+        return {"f": 1.0 + 0.3 * math.sqrt(options.rtol)}
+
+    start = StepOptions(control="error", scheme="bdf2", rtol=1e-3, atol=1e-6)
+    check = verify_time(run, start, 1e-3)
+    rtols = [r["rtol"] for r in check["runs"]]
+    assert check["converged"] and len(rtols) == 4 and rtols[1] == pytest.approx(2.5e-4)
+    assert rtols[2] == pytest.approx(rtols[1] / 16) and rtols[3] < rtols[2] / 2
+    true = 0.3 * math.sqrt(rtols[3])
+    assert true <= check["estimates"]["f"] <= 1e-3
+
+    def failing(options, i):
+        if i == 2:
+            raise ConvergenceError("below Newton's accuracy")
+        return run(options, i)
+
+    check = verify_time(failing, start, 1e-3)
+    assert not check["converged"] and "Newton" in check["runs"][-1]["failed"]
+    assert check["options"].rtol == pytest.approx(2.5e-4)  # the last run that finished
+    assert check["values"] == run(check["options"], 1) and check["estimates"]["f"] > 1e-3
+
+
+def test_a_tolerance_asked_of_the_outputs_is_delivered():
+    """The tolerance-driven control (the time share of tol; its steps checked against a run 4
+    times tighter, rtol and atol alike) delivers the outputs within the time share, and its
+    estimate, reported per output, bounds what it delivered. "Exact": the same mesh at rtol
+    1e-5, Newton to 1e-15 N/mm (7e-5 of the peaks from one at 1e-6, against 2.5e-3 asked).
+    Local error control alone does not do this: on the issue's column (benchmarks/
+    biphasic_confined.py --issue) rtol 1e-4 ends 6.5e-3 off in the pore pressure."""
+    from fingertip_dolfinx.solver import TIME_SHARE, tolerance_steps, verify_time
+
+    exact = _column_outputs(StepOptions(control="error", scheme="bdf2", rtol=1e-5, atol=1e-11,
+                                        dt_initial=1e-2, dt_min=1e-9, dt_max=1000.0),
+                            {"snes_rtol": 1e-12, "snes_atol": 1e-15, "snes_max_it": 30},
+                            "exact_")
+    tol = 1e-2
+    budget = TIME_SHARE * tol
+    check = verify_time(lambda options, i: _column_outputs(options, None, f"asked{i}_"),
+                        tolerance_steps(budget, StepOptions(dt_max=1000.0)), budget,
+                        scales=_relative_to_peaks)
+    delivered, estimated = _delivered(check["values"], exact), max(check["estimates"].values())
+    print(f"asked {tol:g} (time share {budget:g}): delivered {delivered:.2e}, estimated "
+          f"{estimated:.2e}, runs {check['runs']}")
+    assert check["converged"] and set(check["estimates"]) == set(exact)
+    assert delivered <= budget <= tol  # measured 2.5e-4 (3.2e-4 against rtol 1e-6)
+    assert estimated >= delivered  # measured 4.9e-4: the reported estimate bounds it
+    assert check["runs"][-1]["rtol"] < check["runs"][0]["rtol"]  # the answer is the tighter
+
+
+def test_a_step_that_ends_exactly_on_a_kink_stops_there():
+    """From t = 90 s a 10 s step ends on the ramp's end (100 s) exactly; with an output at
+    101 s it was stretched there (the sliver rule), stepping over the kink: the ramp's end
+    was never a step and its force never computed."""
+    from fingertip_dolfinx.loading import step_times
+
+    marks = [100.0, 101.0, 3000.0]
+    assert step_times(marks, 90.0, 10.0, 3000.0) == 100.0
+    assert step_times(marks, 90.0, 10.0 + 1e-13, 3000.0) == 100.0
+    assert step_times(marks, 90.0, 9.9, 3000.0) == 100.0  # a sliver short: stretched to it
+    assert step_times(marks, 90.0, 5.0, 3000.0) == 95.0
