@@ -204,3 +204,14 @@ def test_install_script_says_clearly_when_there_is_no_python_312(tmp_path):
     assert "no Python >= 3.12 found" in result.stderr
     assert "Fix:" in result.stderr
     assert not (tmp_path / "venv").exists()
+
+
+def test_image_lets_a_rank_wait_for_a_form_another_rank_compiles():
+    # Every new container starts with an empty form cache; ranks solving alone compile the
+    # same forms at once and FFCx's default 10 s wait gives up long before a compile on a busy
+    # machine ends, leaving the other rank waiting in a collective.
+    runs = " ".join(a for k, a in instructions(DOCKERFILE) if k == "RUN")
+    found = re.search(r"""\{\s*"timeout"\s*:\s*(\d+)\s*\}'?\s*>\s*(\S+)""", runs)
+    assert found, "no DOLFINx JIT options file with a timeout"
+    assert int(found.group(1)) >= 600, "a compile can take minutes: wait at least 10 min"
+    assert found.group(2).endswith(".config/dolfinx/dolfinx_jit_options.json")
