@@ -1,6 +1,7 @@
 # Two commands do all the set-up on a fresh machine:
 #   make        build .venv on first use, then run the main job on defaults
 #   make test   build .venv on first use, then run the test suite (serially and on 2 MPI ranks)
+#   make lint   ruff over the repository (the rules in pyproject.toml)
 #   make docs   the documentation site (Sphinx, demos executed) -> docs/_build/html
 VENV ?= .venv
 OUT ?= results
@@ -8,7 +9,7 @@ NP ?= 2
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: run install test test-slow docs clean
+.PHONY: run install test test-slow lint docs clean
 run: $(STAMP)
 	$(VENV)/bin/fingertip run line-load --out $(OUT)/line-load
 
@@ -19,6 +20,9 @@ test: $(STAMP)
 
 test-slow: $(STAMP)
 	$(PY) -m pytest -m slow
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check .
 
 DOCS_STAMP := $(VENV)/.docs-installed
 docs: $(DOCS_STAMP)

@@ -16,7 +16,8 @@ Errors are those of the force and the core pressure histories as a user reads th
 between a run's steps) at the reference's points (dense where the histories change fast),
 relative to their peaks: the largest in the hold (t > t0), and at the ramp's end (the peak
 force); the ramp's (t < t0, set by the first step: the force grows like sqrt(t)) and the
-classic global error at the run's own steps are in the CSV. The reference: backward Euler on a geometric time grid (the ramp in m equal steps, the
+classic global error at the run's own steps are in the CSV. The reference: backward Euler on a
+geometric time grid (the ramp in m equal steps, the
 hold in 4m steps growing geometrically from t0/m), at m = 128 and 256, combined by
 Richardson extrapolation (2 F_256 − F_128; BE is first order), interpolated between its
 points (PCHIP, monotone) where needed. The reference's own error (from the ramp's end on) is
@@ -249,7 +250,8 @@ def benchmark(make_problem, name: str, n: int, grading: float, Ns, m_ref: int,
               f"|J - 1| in the core {adaptive['core_J_change_first_step']:.1e} (first step), "
               f"{adaptive['core_J_change_ramp_end']:.1e} (ramp end); min J "
               f"{adaptive['J_min']:.4f}; end force {adaptive['force_end_N_per_mm']:.8e} vs "
-              f"drained {adaptive['drained_force_N_per_mm']:.8e} ({adaptive['end_force_error']:+.1e})")
+              f"drained {adaptive['drained_force_N_per_mm']:.8e} "
+              f"({adaptive['end_force_error']:+.1e})")
     out.mkdir(parents=True, exist_ok=True)
     with open(out / f"{name}.csv", "w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=list(rows[0]))
@@ -432,7 +434,8 @@ def _tolerance_line(r: dict) -> str:
     ok = all(r[f"{q}_delivered"] <= r["asked"] for q in ("force", "pressure"))
     runs = f"{r['runs']}" + (" (the last failed)" if r["failed"] else "")
     return (f"| {r['nu']:g} | {r['asked']:.0e} | {r['time_budget']:.1e} | {runs} "
-            f"({r['answer_rtol']:.1e}){'' if r['converged'] else ', not converged'} | {r['steps']} | {r['wall_time_s']:.1f} | "
+            f"({r['answer_rtol']:.1e}){'' if r['converged'] else ', not converged'} | "
+            f"{r['steps']} | {r['wall_time_s']:.1f} | "
             f"{r['force_estimated']:.1e} / {r['force_delivered']:.1e} | "
             f"{r['pressure_estimated']:.1e} / {r['pressure_delivered']:.1e} | "
             f"{r['force_delivered_after_ramp']:.1e}, {r['pressure_delivered_after_ramp']:.1e} | "
@@ -440,7 +443,8 @@ def _tolerance_line(r: dict) -> str:
             f"{r['local_only_pressure']:.1e} |")
 
 
-TOLERANCE_HEADER = ("| nu | asked | time budget | runs (the answer's rtol) | steps | wall (s) | force: "
+TOLERANCE_HEADER = ("| nu | asked | time budget | runs (the answer's rtol) | steps | wall (s) | "
+                    "force: "
                     "estimated / delivered | pressure: estimated / delivered | right after the "
                     "ramp: F, p | delivered <= asked | local control alone at rtol = asked: F, p |"
                     "\n| " + " | ".join(["---:"] * 11) + " |")

@@ -62,7 +62,7 @@ def main():
     h2, h3 = read_csv(args.run2d / "history.csv"), read_csv(args.run3d / "history.csv")
     surf2 = read_csv(args.run2d / "surface_profile.csv")
     across, along = (read_csv(args.run3d / f"surface_{d}.csv") for d in ("across", "along"))
-    d2, d3 = read_csv(args.run2d / "depth_profiles.csv"), read_csv(args.run3d / "depth_profiles.csv")
+    d2, d3 = (read_csv(run / "depth_profiles.csv") for run in (args.run2d, args.run3d))
     line = read_csv(args.run3d / "line_force.csv")
     z_c = float(d3["z_mm"][0])  # the cross-section of the 3D profiles
     times = np.unique(line["time_s"])

@@ -8,7 +8,8 @@ measures the neighbours too; under MPI the CPU time includes the ranks' busy wai
 the assembly's share. Run it for two sizes and 1-2 ranks:
 
     .venv/bin/python benchmarks/fingertip_3d.py --min-size 0.4
-    .venv/bin/python benchmarks/fingertip_3d.py --min-size 0.4 --linear iterative --set model.rigid_bone=true
+    .venv/bin/python benchmarks/fingertip_3d.py --min-size 0.4 --linear iterative \\
+        --set model.rigid_bone=true
     .venv/bin/mpiexec -n 2 .venv/bin/python benchmarks/fingertip_3d.py --min-size 0.4
 
 `--assembly N` only builds the scene and times N Jacobian assemblies at a smooth deformed state
@@ -23,14 +24,14 @@ import tempfile
 import time
 from pathlib import Path
 
+import dolfinx.fem.petsc
 import numpy as np
 from mpi4py import MPI
+from timing import tally
 
 import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
-import dolfinx.fem.petsc
 from fingertip_dolfinx.runner import Run, run_scene
 from fingertip_dolfinx.scene import load_scene
-from timing import tally
 
 
 def main():

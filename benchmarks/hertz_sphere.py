@@ -28,7 +28,8 @@ def run(hertz: HertzSphere, n: float) -> str:
     force = block.force()
     a, p0 = hertz.theory(force)
     return (f"h = a/{n:<4g} L = {hertz.L:g} mm  cells {domain.topology.index_map(3).size_global:6d}"
-            f"  dofs {3 * block.u.function_space.dofmap.index_map.size_global:6d}  P = {force:.5g} N"
+            f"  dofs {3 * block.u.function_space.dofmap.index_map.size_global:6d}"
+            f"  P = {force:.5g} N"
             f"  a {contact_edge(r, s) / a - 1:+.2%}  p0 {p.max() / p0 - 1:+.2%}"
             f"  its {iterations}  {time.perf_counter() - start:.1f} s")
 

@@ -15,10 +15,10 @@ import argparse
 import re
 import time
 
-import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
 import numpy as np
 from mpi4py import MPI
 
+import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
 from fingertip_dolfinx.errors import ConvergenceError
 from fingertip_dolfinx.mesh import build_mesh
 from fingertip_dolfinx.problem import FingertipProblem

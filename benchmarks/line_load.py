@@ -58,20 +58,21 @@ from pathlib import Path
 
 from mpi4py import MPI
 from petsc4py import PETSc
+from timing import tally
 
 import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
 from fingertip_dolfinx.outputs import read_csv
 from fingertip_dolfinx.runner import Run
 from fingertip_dolfinx.scene import load_scene
 from fingertip_dolfinx.studies.keys import KEYS, key_outputs, relative_errors
-from timing import tally
 
 EVENTS = {"residual": "SNESFunctionEval", "jacobian": "SNESJacobianEval",
           "factorisation": "MatLUFactorNum", "solve": "KSPSolve", "triangular": "MatSolve"}
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawTextHelpFormatter)
     parser.add_argument("--scene", default="line-load")
     parser.add_argument("--set", dest="overrides", action="append", default=[])
     parser.add_argument("--out", type=Path, default=None, help="keep the results here")

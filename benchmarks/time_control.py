@@ -14,7 +14,8 @@ Controls: today's (growth ×1.5 after easy steps; the confined run with the defa
 StepOptions, dt_max 10 s; the scene with its own dt_max 0.25 s), backward Euler + error control
 (rtol 1e-3), BDF2 + error control (rtol 1e-3 and 1e-4); error control with dt_max the whole
 run (and atol: 1e-12 on the column, where the tolerance is purely relative; the default 1e-6
-mm/MPa on the scene). The confined problem adds fixed BDF2 steps of 1 s (what a hand-chosen schedule costs);
+mm/MPa on the scene). The confined problem adds fixed BDF2 steps of 1 s (what a hand-chosen
+schedule costs);
 its runs stop Newton at 1e-14 N/mm (the forces are ~1e-4 N/mm), the reference at 1e-15.
 
     .venv/bin/python benchmarks/time_control.py [--skip-scene]

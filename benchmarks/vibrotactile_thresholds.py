@@ -11,7 +11,7 @@ a stand-in mechanics, printed and drawn.
    the pressed value. Writes thresholds.csv and thresholds.png (with the verified published
    bands) to the output directory (argument, default ./vibrotactile-benchmark).
 
-Run: cd <worktree> && PYTHONPATH=. /work/main/.venv/bin/python benchmarks/vibrotactile_thresholds.py [DIR]
+Run: .venv/bin/python benchmarks/vibrotactile_thresholds.py [DIR]
 """
 
 from __future__ import annotations

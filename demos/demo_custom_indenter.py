@@ -24,7 +24,7 @@
 # Run it:
 #
 # ```bash
-# python demos/demo_custom_indenter.py           # 1pt-scene mesh, two cycles, 40 steps each (~3 min)
+# python demos/demo_custom_indenter.py           # 1pt-scene mesh, two cycles of 40 steps (~3 min)
 # python demos/demo_custom_indenter.py --coarse  # coarse mesh, one cycle, ~10 steps (~30 s)
 # ```
 #

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import sys
 from importlib.metadata import version as _version
 from pathlib import Path
 
@@ -19,8 +20,6 @@ project = "fingertip-dolfinx"
 author = "the fingertip-dolfinx developers"
 copyright = "2026, the fingertip-dolfinx developers"
 release = _version("fingertip-dolfinx")
-
-import sys
 
 sys.path.insert(0, str(HERE / "_ext"))
 
@@ -33,7 +32,8 @@ extensions = [
     "sphinx.ext.viewcode",
 ]
 source_suffix = {".md": "myst-nb", ".ipynb": "myst-nb"}
-exclude_patterns = ["_build", "results/**/*.md", "reference/_keys.md", "reference/_api.md", "conf.py", "_ext", "demos/*.ipynb", "Thumbs.db", ".DS_Store"]
+exclude_patterns = ["_build", "results/**/*.md", "reference/_keys.md", "reference/_api.md",
+                    "conf.py", "_ext", "demos/*.ipynb", "Thumbs.db", ".DS_Store"]
 myst_enable_extensions = ["dollarmath", "amsmath", "colon_fence", "deflist"]
 myst_heading_anchors = 3
 suppress_warnings = ["myst.header"]

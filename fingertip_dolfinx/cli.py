@@ -451,7 +451,8 @@ def _run_sweep(args) -> int:
     )
     if "population" in result:
         pop = result["population"]
-        fmt = lambda x: "not bracketed" if x is None else f"{x:.2f} mm"
+        def fmt(x):
+            return "not bracketed" if x is None else f"{x:.2f} mm"
         _rank0_print(f"SA1 population: threshold {fmt(pop['threshold_mm'])}, smallest resolved "
                      f"spacing {fmt(pop['smallest_resolved_mm'])} ({pop['criterion']})")
     return 0

@@ -169,7 +169,8 @@ class DruckerResult:
         lines = [f"Drucker check ({kind}) of {self.material.where}, stretches in [{lo}, {hi}]:",
                  f"  stable on {self.stable.mean():.1%} of the grid"]
         for path, (c, t) in self.first_unstable.items():
-            fmt = lambda x: "stable" if x is None else f"{x:.3f}"
+            def fmt(x):
+                return "stable" if x is None else f"{x:.3f}"
             lines.append(f"  {path}: compression {fmt(c)}, tension {fmt(t)}")
         return "\n".join(lines)
 

@@ -1,4 +1,5 @@
-"""The fingertip cross-section as validated data, read from TOML files (built in: `fingertip_dolfinx/data/sections/`).
+"""The fingertip cross-section as validated data, read from TOML files (built in:
+`fingertip_dolfinx/data/sections/`).
 
 Conventions (docs/DESIGN.md): lengths in mm, the origin at the centre of the outer ellipse, `x`
 across the finger, `y` from the pulp (`y < 0`) to the nail (`y > 0`).

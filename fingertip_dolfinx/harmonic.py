@@ -511,7 +511,8 @@ def press(problem, pressing: RampHold, kind: str = "relaxed", steps: StepOptions
           petsc_options: dict | None = None,
           on_step: Callable | None = None, linear: str = "direct") -> PressedState:
     """Bring `problem` to its pressed state (see the module's docstring) and leave it there:
-    "held" steps `pressing` (ramp and hold) to its end; "relaxed" steps its ramp, then holds the depth
+    "held" steps `pressing` (ramp and hold) to its end; "relaxed" steps its ramp, then holds the
+    depth
     with the `relaxation_steps`. The problem's `history` is replaced by the one it was pressed
     with (the state then stays at its depth whatever `set_time` is given). `linear` is the
     linear solver inside Newton (the scene's `[solver] linear`: "direct" or "iterative")."""

@@ -115,7 +115,7 @@ def isotropic_tensor_function(C, f: ScalarFn, tol: float = SWITCH_TOL) -> ufl.co
     slope = ufl.conditional(
         near, f1 + f3 * delta / 6 + f5 * delta**2 / 120, (f(m + s) - f(m - s)) / (2 * s)
     )
-    I = ufl.Identity(2)
+    I = ufl.Identity(2)  # noqa: E741 (the identity tensor, as in the equations)
     return mean * I + slope * (C - m * I)
 
 
@@ -236,7 +236,7 @@ def _eigen_sum_3d(C, f: ScalarFn, tol: float):
       stress, since dr/dC = 0 at r = ±1, but drops ∂G/∂r · d²r/dC² from the tangent: an O(1)
       error there, tests/test_kinematics.py measures it.)
     """
-    I = ufl.Identity(3)
+    I = ufl.Identity(3)  # noqa: E741 (the identity tensor, as in the equations)
     m = ufl.tr(C) / 3
     D = C - m * I
     q = ufl.inner(D, D)  # tr(D²) for symmetric D

@@ -6,7 +6,8 @@ block K (all regions) and, with a pore law, the pore pressure p on the subcutane
     J = [ K  −Bᵀ ]      K: elasticity + contact,  B: ∫ q J F⁻ᵀ : Grad δu (the mass balance),
         [ B   C  ]      C: Δt J k C⁻¹ Grad p · Grad q (biphasic; 0 undrained).
 
-"direct" (the default): MUMPS LU of the whole of J; exact, robust; in 2D work ~ n^1.5, memory ~ n log n.
+"direct" (the default): MUMPS LU of the whole of J; exact, robust; in 2D work ~ n^1.5, memory ~ n
+log n.
 "iterative": FGMRES preconditioned by a Schur-complement field split (PETSc PCFIELDSPLIT):
 K by smoothed-aggregation algebraic multigrid (GAMG, told the rigid-body modes of the
 displacement space: its near null space) and the pressure Schur complement
@@ -65,7 +66,8 @@ DIRECT_OPTIONS = {
     "pc_factor_mat_solver_type": "mumps",
 }
 
-#: The Krylov tolerance (relative, unpreconditioned residual). Newton's own tolerances (snes_rtol 1e-9, snes_atol 1e-10 N/mm) need
+#: The Krylov tolerance (relative, unpreconditioned residual). Newton's own tolerances (snes_rtol
+#: 1e-9, snes_atol 1e-10 N/mm) need
 #: each linear solve to reduce its residual further than Newton's quadratic rate would:
 #: an inexact Newton step with relative tolerance η converges linearly at rate η.
 KSP_RTOL = 1e-10

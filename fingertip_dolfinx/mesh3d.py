@@ -42,9 +42,20 @@ import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
 
 from .geometry import Ellipse
 from .geometry3d import Fingertip3D, ellipsoid_distance
-from .mesh import (CELL_TAGS, FACET_TAGS_3D, SIZE_GROWTH, FingertipMesh, MeshReport, _add_nail,
-                   _ellipse_curve, _ellipse_loop, _gmsh_model, element_report, graded_size,
-                   region_areas)
+from .mesh import (
+    CELL_TAGS,
+    FACET_TAGS_3D,
+    SIZE_GROWTH,
+    FingertipMesh,
+    MeshReport,
+    _add_nail,
+    _ellipse_curve,
+    _ellipse_loop,
+    _gmsh_model,
+    element_report,
+    graded_size,
+    region_areas,
+)
 
 #: Sections of the lofted rounded ends (`_dome`), at alpha = 0 .. CAP_LAST_ANGLE (deg): with 12
 #: the skin on the cap is 0.798-0.804 mm thick (0.8 ideal; the module's docstring).

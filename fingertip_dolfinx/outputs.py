@@ -261,7 +261,8 @@ class Checkpoint:
         data = np.load(self.path)
         if int(data["ranks"]) != self.comm.size:
             raise InputError(where, f"the run was made on {int(data['ranks'])} ranks, this one "
-                             f"has {self.comm.size}.", f"resume with mpiexec -n {int(data['ranks'])}.")
+                             f"has {self.comm.size}.",
+                             f"resume with mpiexec -n {int(data['ranks'])}.")
         for name, array in state.items():
             if name not in data or data[name].shape != array.shape:
                 raise InputError(where, f"the checkpoint does not fit this scene's model ({name}).",

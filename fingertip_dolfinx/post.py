@@ -110,7 +110,8 @@ class DerivedFields:
 
 
 class QuadratureProjection:
-    """Square (gdim × gdim) tensor expressions, one per set of cells, evaluated at the quadrature points of
+    """Square (gdim × gdim) tensor expressions, one per set of cells, evaluated at the quadrature
+    points of
     degree `quadrature_degree` (where a QLV history lives) and projected onto a DG1 tensor
     function cell by cell (least squares with the rule's weights: the local L2 projection on
     affine cells). `update()` re-evaluates them."""
@@ -316,7 +317,8 @@ class FieldArrays:
     `__call__()` returns (rank 0; None elsewhere): each owned cell's corners in the reference
     configuration `X` (cells, corners, gdim), the displacement there `u`, the cell's region tag
     `region`, and the derived fields at the corners (discontinuous P1, so exact): `sed` (MPa),
-    `log_strain` (cells, corners, gdim²: e11, e12, e21, e22 in 2D), `principal` (e_max, e_min); with a
+    `log_strain` (cells, corners, gdim²: e11, e12, e21, e22 in 2D), `principal` (e_max, e_min);
+    with a
     pore pressure, the subcutaneous submesh's corners `X_p`, their displacement `u_p` and `p`.
     """
 

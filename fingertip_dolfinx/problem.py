@@ -22,7 +22,8 @@ The residual is assembled from named parts: `_region_stresses`, `_pressure`, `_c
 the `_support`:
 
 Support: the `nail_centre` patch (a short arc at the top of the nail, centred on the point the
-paper fixes; in 3D a strip along the nail's top) is clamped in every component. A single fixed point would leave the rigid rotation about
+paper fixes; in 3D a strip along the nail's top) is clamped in every component. A single fixed
+point would leave the rigid rotation about
 it free; clamping the short patch of the 170 MPa nail removes it and exerts no force of its
 own: at equilibrium its reaction equals the indenter force, and for a load on the symmetry
 line its moment is zero. If a region is rigid (bone, nail), its nodes are clamped instead and
@@ -266,7 +267,8 @@ class FingertipProblem:
 
     def state_arrays(self) -> dict[str, np.ndarray]:
         """The arrays that define the state, by their checkpoint names: u, u_n, p (if any),
-        u_nm1 (if the pore law has a rate: biphasic, for BDF2), v_n and a_n (with inertia), qlv_h{i} and qlv_S_e_n (if the
+        u_nm1 (if the pore law has a rate: biphasic, for BDF2), v_n and a_n (with inertia),
+        qlv_h{i} and qlv_S_e_n (if the
         skin is viscoelastic). They are the live arrays: writing into them sets the state
         (then scatter_forward the unknowns, mark_accepted)."""
         arrays = {"u": self.u.x.array, "u_n": self.u_n.x.array}

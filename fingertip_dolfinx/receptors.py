@@ -597,7 +597,6 @@ class ReceptorRecorder:
 
     def __init__(self, problem, derived, population: ReceptorPopulation, outer, out: Path,
                  comm, resume_after: float | None = None):
-        from dolfinx import fem
 
         from .outputs import CsvLog
         from .post import CauchyStress, PointSampler

@@ -337,7 +337,9 @@ class TimeStepper:
         self.linear_iterations += self._last_linear
         return self.snes.getConvergedReason(), self.snes.getIterationNumber()
 
-    def run(
+    # Accept/reject, cuts, compaction diagnosis and the step-size update in one loop: it is to
+    # become a stepping package with step-size policies as objects (noqa until then).
+    def run(  # noqa: C901
         self,
         history: Callable[[float], float],
         end_time: float,

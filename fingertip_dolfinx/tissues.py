@@ -2,7 +2,7 @@
 
 A materials file has a table per region, each naming its law and giving its parameters:
 
-    [skin]               model = "hyperfoam"; mu, alpha, nu         (+ optional [skin.prony]: g, tau)
+    [skin]               model = "hyperfoam"; mu, alpha, nu         (+ optional [skin.prony])
     [subcutaneous]       model = "biphasic";  mu, alpha, nu, phi0   (+ [subcutaneous.permeability])
     [subcutaneous.permeability]  law = "holmes-mow" (k0, kappa, M) | "constant" (k0)
     [bone], [nail]       model = "linear-elastic" (E, nu) | "rigid"

@@ -22,7 +22,8 @@ divisible by 4 the kinks of [ṡ]± and [s̈]± lie on samples) and is linear in
 piece the membrane is integrated in closed form and every threshold crossing is found as the
 root of that closed form (the same scheme as `receptors.lif_spikes`, vectorised over lanes =
 (frequency, site, amplitude) here). The only approximation is the linear interpolation of J:
-|δJ| <= h² max|J''| / 8 with h = T/N, i.e. a relative error <= (2π/N)²/8 = 1.2e-3 at the default N = 64
+|δJ| <= h² max|J''| / 8 with h = T/N, i.e. a relative error <= (2π/N)²/8 = 1.2e-3 at the default N
+= 64
 (`SAMPLES`) on the smooth parts of a rectified sinusoid.
 
 **Criteria** (the names of Freeman & Johnson 1982, J Physiol 323:43-64, abstract read: "Amplitudes,
@@ -44,7 +45,8 @@ monotonically from 0 to 1 impulse/cycle"):
   was tried: the count is not monotone in the amplitude and the curve it gives is erratic.)
 
 Both search the amplitude (k-section, geometric, to `rtol`, default 1e-2) and assume the
-response grows with the amplitude (true for RA and PC inputs, which scale with a; for a static SA1 weight the negative
+response grows with the amplitude (true for RA and PC inputs, which scale with a; for a static SA1
+weight the negative
 half-cycle lowers J, and monotonicity is an assumption). The *cycle response* (impulses per
 cycle, Johansson, Landström & Lundström 1982, Brain Res 244:17, abstract: "the number of
 impulses evoked per sine wave cycle") is the mean spike count per counted cycle; the rate is

@@ -28,7 +28,7 @@ def _check(cases, tmp_path):
     rows = BAD.run_all(BAD.fixtures(tmp_path), cases)
     wrong = [(case.mistake, code, message) for case, code, message, ok in rows if not ok]
     assert not wrong, wrong
-    for case, code, message, _ in rows:
+    for _case, code, message, _ in rows:
         assert "\n" not in message and (code == 0 or "Fix" in message or "error" in message)
 
 

@@ -320,7 +320,6 @@ def test_fingertip_momentum_balance_with_inertia():
     The protocol starts at the ramp: the stepper's first steps are quasi-static ones."""
     import dataclasses
 
-    import ufl
     from dolfinx import fem
 
     from fingertip_dolfinx.geometry import load_section

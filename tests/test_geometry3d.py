@@ -10,8 +10,12 @@ from scipy.integrate import quad
 
 from fingertip_dolfinx.errors import InputError
 from fingertip_dolfinx.geometry import Ellipse, Section, load_section
-from fingertip_dolfinx.geometry3d import (Fingertip3D, half_ellipsoid_area_and_mean_curvature,
-                                          load_fingertip3d, section_dimension)
+from fingertip_dolfinx.geometry3d import (
+    Fingertip3D,
+    half_ellipsoid_area_and_mean_curvature,
+    load_fingertip3d,
+    section_dimension,
+)
 
 
 def test_the_builtin_file_is_3d_and_its_cross_section_is_the_2d_section():

@@ -200,7 +200,8 @@ def _sampled_quantities(problem, points) -> dict[str, np.ndarray]:
 
 
 def test_site_transfer_at_two_hertz_is_the_instantaneous_change(pressed):
-    """Serial (the samples are gathered on rank 0). The transfer functions to the stimulus quantities at points in the subcutaneous tissue
+    """Serial (the samples are gathered on rank 0). The transfer functions to the stimulus
+    quantities at points in the subcutaneous tissue
     under the bar (where sed, −e_min and −σ22 − p all respond): Re of the 2 Hz transfer equals
     the central difference of the quantities over one vanishing step to d ± δ, to 1 %: the
     exact derivatives, the pore pressure and the QLV split δσ = Dσ|_{S0} + (G* − g∞) F DS_e Fᵀ/J

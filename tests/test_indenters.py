@@ -169,7 +169,8 @@ def test_each_bad_value_gets_its_own_message(data, message):
 
 
 def test_a_missing_file_names_the_builtins_and_where_they_are():
-    with pytest.raises(InputError, match=r"no such file.*bar, cylinder, plate, sphere, wedge") as info:
+    names = r"no such file.*bar, cylinder, plate, sphere, wedge"
+    with pytest.raises(InputError, match=names) as info:
         load_indenter("pyramid")
     assert str(BUILTIN_DIR) in str(info.value)
 

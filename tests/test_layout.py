@@ -14,7 +14,7 @@ def _chain() -> dict[str, int]:
     """Module -> its row in DESIGN.md's table (modules named in one row share it)."""
     text = DESIGN.read_text().split("## The chain of modules", 1)[1].split("\n## ", 1)[0]
     rank = {}
-    for row, line in enumerate(l for l in text.splitlines() if l.startswith("| `")):
+    for row, line in enumerate(r for r in text.splitlines() if r.startswith("| `")):
         for name in re.findall(r"`([a-z0-9_/]+)`", line.split("|")[1]):
             rank[name.rstrip("/")] = row
     return rank

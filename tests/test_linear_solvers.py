@@ -11,13 +11,12 @@ import pytest
 import ufl
 from dolfinx import fem, mesh
 from mpi4py import MPI
-
 from petsc4py import PETSc
 
 from fingertip_dolfinx.errors import InputError
 from fingertip_dolfinx.harmonic import press
-from fingertip_dolfinx.loading import RampHold
 from fingertip_dolfinx.linear_solvers import LinearSolver, rigid_body_modes
+from fingertip_dolfinx.loading import RampHold
 from fingertip_dolfinx.mesh import build_mesh
 from fingertip_dolfinx.problem import FingertipProblem
 from fingertip_dolfinx.scene import load_scene, scene_record
@@ -180,7 +179,8 @@ def test_scene_chooses_the_linear_solver():
     scene = load_scene("1pt")
     assert scene.linear == "direct"
     assert scene_record(scene)["solver"]["linear"] == "direct"
-    scene = load_scene("line-load", ["solver.linear=iterative", "solver.petsc_options.ksp_rtol=1e-9"])
+    scene = load_scene("line-load", ["solver.linear=iterative",
+                                     "solver.petsc_options.ksp_rtol=1e-9"])
     assert scene.linear == "iterative"
     assert scene.petsc_options == {"snes_atol": 1e-9, "ksp_rtol": 1e-9}
     with pytest.raises(InputError) as error:

@@ -15,6 +15,7 @@ from dolfinx.mesh import create_unit_square
 from mpi4py import MPI
 
 from fingertip_dolfinx.admissibility import Admissibility, Compaction
+from fingertip_dolfinx.errors import InputError
 from fingertip_dolfinx.mesh import build_mesh
 from fingertip_dolfinx.model import (
     BiphasicFlow,
@@ -30,7 +31,6 @@ from fingertip_dolfinx.model import (
 from fingertip_dolfinx.problem import FingertipProblem
 from fingertip_dolfinx.scene import load_scene
 from fingertip_dolfinx.solver import DEFAULT_PETSC_OPTIONS, TimeStepper
-from fingertip_dolfinx.errors import InputError
 from fingertip_dolfinx.tissues import REGIONS, WU2004, load_materials, tissues_from_dict
 
 COARSE = ["section.mesh.min_size=0.2", "section.mesh.max_size=1.0", "section.mesh.bone_size=2.0"]

@@ -101,7 +101,7 @@ def column_history(gdim: int, ny: int) -> np.ndarray:
 
 def drained_settlement(sigma: float) -> float:
     """H (1 − λ) with the drained confined stress σ_yy(λ) = −σ (closed form)."""
-    lam = brentq(lambda l: confined_drained_stress(SOLID, l)[1] + sigma, 0.5, 1.0, xtol=1e-15)
+    lam = brentq(lambda s: confined_drained_stress(SOLID, s)[1] + sigma, 0.5, 1.0, xtol=1e-15)
     return 1.0 - lam
 
 

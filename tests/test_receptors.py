@@ -76,7 +76,8 @@ def test_the_saturation_caps_the_rate():
 def _rk4_spikes(t_end, current, tau, t_ref, dt):
     """A fine reference: RK4 in steps of dt, the crossing located by linear interpolation."""
     spikes, v, t, free = [], 0.0, 0.0, 0.0
-    f = lambda t, v: (-v + current(t)) / tau
+    def f(t, v):
+        return (-v + current(t)) / tau
     while t < t_end - 1e-15:
         if t < free:
             t, v = min(free, t_end), 0.0

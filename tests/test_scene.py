@@ -99,7 +99,7 @@ def test_resume_continues_an_interrupted_run(one_point_run, tmp_path_factory):
 
     def die_after_three(report):
         on_step(report)
-        if first.step_count == 3:
+        if first.step_count == 3:  # noqa: F821 (bound above, before this closure runs)
             raise Killed
 
     first.on_step = die_after_three

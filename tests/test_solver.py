@@ -139,8 +139,9 @@ def test_jacobian_reuse_reaches_the_same_states_with_fewer_factorisations():
                             jacobian_reuse=reuse)
         stepper = TimeStepper(column, fixed, TIGHT, prefix=f"reuse{int(100 * reuse)}_")
         values = []
-        stepper.run(history, history.end_time, on_step=lambda r: values.append(
-            column.settlement()))
+        stepper.run(history, history.end_time,
+                    on_step=lambda r, values=values, column=column: values.append(
+                        column.settlement()))
         settlements[reuse], kept[reuse] = np.array(values), stepper.reuse
         stepper.close()
     assert kept[0.0] is None and kept[0.02].reused > 0

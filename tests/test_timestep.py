@@ -51,8 +51,10 @@ def test_milne_estimate_is_the_local_error(order):
     """One backward-Euler (order 1) or BDF2 (order 2) step of ẋ = f(t) from exact history at
     uneven step ratios: Milne's K/(K − K_p)·(corrector − predictor) is its local error, to a
     relative O(Δt)."""
-    x = lambda t: np.sin(3 * t) + t**3
-    dx = lambda t: 3 * np.cos(3 * t) + 3 * t**2
+    def x(t):
+        return np.sin(3 * t) + t**3
+    def dx(t):
+        return 3 * np.cos(3 * t) + 3 * t**2
     for h, close in ((1e-2, 0.05), (1e-3, 0.01)):
         dts = [h, 1.6 * h, 0.7 * h]
         times = 0.3 - np.cumsum([0.0, dts[1], dts[2]])[::-1]  # t_{n−2}, t_{n−1}, t_n
@@ -389,7 +391,8 @@ def test_time_estimate_bounds_errors_that_fall_with_the_tolerance(exponent):
 def test_time_check_tightens_until_within_budget_and_survives_a_failed_run():
     """An output whose error is 0.3 tol^(1/2): from rtol 1e-3 the estimate after the first
     check (5.9e-3) is above a 1e-3 budget, so a third run tightens by (E/(budget/2))^2, at
-    most 16, and a fourth once more; when the third run fails (a tolerance Newton cannot resolve), the check ends unconverged with the last
+    most 16, and a fourth once more; when the third run fails (a tolerance Newton cannot resolve),
+    the check ends unconverged with the last
     finished run as the answer and the failure recorded, instead of losing everything."""
     from fingertip_dolfinx.errors import ConvergenceError
     from fingertip_dolfinx.solver import verify_time

@@ -62,7 +62,8 @@ def test_a_slow_modulation_follows_the_quasi_static_rate():
     theta = np.linspace(0.0, 2 * np.pi, 200001)
     rate = constant_current_rate(s0 + a * np.sin(theta), lif.tau, lif.refractory)
     expected = cycles / f * np.trapezoid(rate, theta) / (2 * np.pi)
-    period = lambda j: lif.refractory + lif.tau * np.log(j / (j - 1))
+    def period(j):
+        return lif.refractory + lif.tau * np.log(j / (j - 1))
     j_low = s0 - a
     delta_j = a * 2 * np.pi * f * period(j_low)
     log_slope = lif.tau / (j_low * (j_low - 1)) / period(j_low)  # max |P'/P| at the lowest J

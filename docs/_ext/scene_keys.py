@@ -19,8 +19,16 @@ from pathlib import Path
 
 def tables():
     """(TOML table, option class, note) for every table whose keys are a dataclass's fields."""
-    from fingertip_dolfinx import geometry, geometry3d, harmonic, indenters, loading, model, scene
-    from fingertip_dolfinx import solver
+    from fingertip_dolfinx import (
+        geometry,
+        geometry3d,
+        harmonic,
+        indenters,
+        loading,
+        model,
+        scene,
+        solver,
+    )
 
     rows = [
         ("[model]", model.ModelOptions, ""),

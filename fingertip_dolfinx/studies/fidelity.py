@@ -2,7 +2,7 @@
 
 | rung | model |
 | --- | --- |
-| continuum | one homogeneous small-strain linear-elastic section (E, ν of the subcutaneous tissue) |
+| continuum | one homogeneous small-strain linear-elastic section (the subcutaneous E, ν) |
 | hyperfoam | layered hyperfoam, no time dependence (skin elastic, subcutaneous drained) |
 | + skin QLV | the skin's viscoelasticity added |
 | + undrained | the subcutaneous tissue incompressible (no flow) |
