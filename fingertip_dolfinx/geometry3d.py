@@ -59,18 +59,19 @@ DEFAULT_MESH_3D = MeshOptions(min_size=0.4, max_size=1.0, bone_size=2.0)
 class Fingertip3D:
     """A validated 3D distal fingertip (mm)."""
 
+    #: The cross-section carried along z (a 2D section's tables: outer, skin, bone, nail, mesh).
     section: Section = field(default_factory=lambda: Section(mesh=DEFAULT_MESH_3D))
     cylinder_length: float = 14.0  # L: the elliptic cylinder from z = 0 to z = L
     tip_length: float = 7.0  # c: the cap's semi-axis along z; the tip is at z = L + c
     bone_length: float = 17.0  # z of the bone's rounded end
     bone_taper: float = 0.6  # bone ellipse's size where its end cap starts, over its size at z = 0
     bone_end_length: float = 2.0  # length along z of the bone's half-ellipsoidal end
-    nail_start_z: float = 3.0
-    nail_end_z: float = 13.0
+    nail_start_z: float = 3.0  # z where the nail plate starts
+    nail_end_z: float = 13.0  # z where it ends
     refine_z_min: float = 6.0  # refinement zone under the pulp: |x| < mesh.refine_half_width,
     refine_z_max: float = 16.0  # refine_z_min < z < refine_z_max, within mesh.refine_depth
     half: bool = False  # only x >= 0, with the symmetry plane x = 0
-    name: str = "custom"
+    name: str = "custom"  # set from the file's name
 
     def __post_init__(self):
         self._check_numbers()

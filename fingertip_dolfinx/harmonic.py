@@ -114,7 +114,9 @@ class HarmonicOptions:
     protocol's own) and the pressed state ("held": the protocol's pre-indentation, ramp and
     hold, as a time-domain run would vibrate from; "relaxed": the long-term equilibrium)."""
 
+    #: Hz: a list, or "start:stop:count" (log-spaced); empty: the protocol's own.
     frequencies: tuple[float, ...] | str = ()
+    #: The pressed state: "held" or "relaxed".
     state: str = "held"
 
     def __post_init__(self):

@@ -59,7 +59,7 @@ OPTIONAL_KEYS = ("centre_x", "centre_z", "axis")
 class Indenter:
     """Base class: a rigid shape whose highest point is at (centre_x, y_tip[, centre_z])."""
 
-    centre_x: float = 0.0
+    centre_x: float = 0.0  # mm across the finger (0: under the pulp's lowest point)
     centre_z: float = 0.0  # mm along the finger (3D: an "x" prism's or a sphere's position)
     shape: ClassVar[str]
 
@@ -113,7 +113,7 @@ class Indenter:
 class _Prism(Indenter):
     """A 2D profile (`_distance` in its own plane) extruded along `axis` in 3D."""
 
-    axis: str = "z"
+    axis: str = "z"  # 3D: the prism's axis, "z" along the finger or "x" across it
 
     def __post_init__(self):
         super().__post_init__()
@@ -162,7 +162,7 @@ class Plate(_Prism):
 class Cylinder(_Prism):
     """A rigid cylinder (a disc in the section) of the given radius; in 3D its axis is `axis`."""
 
-    radius: float
+    radius: float  # mm
     shape: ClassVar[str] = "cylinder"
 
     def tip_curvature_radius(self) -> float:
@@ -206,9 +206,9 @@ class Wedge(_RoundCone):
     The flanks are tangent to the tip circle and pass through (centre_x ± base/2, y_tip − height).
     """
 
-    tip_radius: float
-    base: float
-    height: float
+    tip_radius: float  # mm: the round tip
+    base: float  # mm: the width at the base
+    height: float  # mm: tip to base
     shape: ClassVar[str] = "wedge"
 
     def __post_init__(self):
@@ -241,7 +241,7 @@ class Wedge(_RoundCone):
 class Bar(_RoundCone):
     """A bar of the given width with vertical flanks and a semicircular tip."""
 
-    width: float
+    width: float  # mm (the tip's radius is half of it)
     shape: ClassVar[str] = "bar"
 
     def _tip(self):
@@ -253,7 +253,7 @@ class Sphere(Indenter):
     """A rigid sphere (a round probe, 3D only): centre (centre_x, y_tip − radius, centre_z).
     φ = |x − c| − radius and n = (x − c)/|x − c|, exact everywhere but at the centre."""
 
-    radius: float
+    radius: float  # mm
     shape: ClassVar[str] = "sphere"
 
     def tip_curvature_radius(self) -> float:

@@ -43,9 +43,9 @@ class PiecewiseLinear:
     """d(t) through the points (times[i], values[i]), constant after the last point until
     `end_time` (default: the last point's time)."""
 
-    times: tuple[float, ...]
-    values: tuple[float, ...]
-    end_time: float | None = None
+    times: tuple[float, ...]  # s, from 0, increasing
+    values: tuple[float, ...]  # mm of indentation after first touch, one per time
+    end_time: float | None = None  # s (default: the last time)
 
     def __post_init__(self):
         object.__setattr__(self, "times", tuple(float(x) for x in self.times))
@@ -82,9 +82,9 @@ class PiecewiseLinear:
 class RampHold:
     """The paper's protocol: ramp to `depth` over `ramp_time`, then hold until `end_time`."""
 
-    depth: float
-    ramp_time: float
-    end_time: float
+    depth: float  # mm of indentation after first touch
+    ramp_time: float  # s
+    end_time: float  # s, >= ramp_time
     _path: PiecewiseLinear = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
@@ -115,11 +115,11 @@ class Sinusoid:
     """d(t) = offset + amplitude·sin(2π f t + phase) for 0 <= t <= end_time (vibrotactile
     stimuli). `phase_deg = -90` with `offset = amplitude` starts from rest: d = A(1 − cos 2πft)."""
 
-    amplitude: float
-    frequency: float
-    end_time: float
-    offset: float = 0.0
-    phase_deg: float = 0.0
+    amplitude: float  # mm
+    frequency: float  # Hz
+    end_time: float  # s
+    offset: float = 0.0  # mm
+    phase_deg: float = 0.0  # degrees
 
     def __post_init__(self):
         if self.frequency <= 0 or self.end_time <= 0:
@@ -169,13 +169,13 @@ class Vibration:
     undamped model).
     """
 
-    depth: float
-    ramp_time: float
-    hold_time: float
-    amplitudes: tuple[float, ...]
-    frequencies: tuple[float, ...]
-    cycles: float = 10.0
-    fade_in: float = 0.0
+    depth: float  # mm: the pressed depth
+    ramp_time: float  # s
+    hold_time: float  # s, before the vibration starts
+    amplitudes: tuple[float, ...]  # mm, one per frequency
+    frequencies: tuple[float, ...]  # Hz
+    cycles: float = 10.0  # periods of the slowest frequency
+    fade_in: float = 0.0  # periods of the slowest frequency over which the amplitude rises
 
     def __post_init__(self):
         for name in ("amplitudes", "frequencies"):

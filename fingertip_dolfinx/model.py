@@ -64,6 +64,8 @@ TISSUE_MODELS = ("layered", "continuum")
 class ModelOptions:
     """Discretisation and modelling choices of one run."""
 
+    #: Lagrange degree of the displacement (1, 2 or 3); the pore pressure is one degree lower
+    #: (Taylor–Hood).
     displacement_degree: int = 2
     #: Quadrature degree of the volume integrals (and of the QLV internal variables).
     quadrature_degree: int = 4
@@ -73,6 +75,7 @@ class ModelOptions:
     #: small-strain linear-elastic section (continuum_E, continuum_nu), the cheapest model.
     tissue: str = "layered"
     continuum_E: float = 2 * 0.579e-3 * 1.4  # MPa: the subcutaneous tissue's small-strain E
+    #: Poisson ratio of the "continuum" model.
     continuum_nu: float = 0.4
     #: "biphasic": pore pressure unknown (Taylor–Hood). "undrained": no flow at all, the
     #: tissue is incompressible (J = 1; p its Lagrange multiplier). "drained": the solid alone
@@ -83,9 +86,11 @@ class ModelOptions:
     rigid_bone: bool = False
     #: "nitsche" (consistent) or "penalty" (robust at sharp tips): see contact.CONTACT_METHODS.
     contact: str = "nitsche"
+    #: Nitsche variant: 0 (the default: converges), +1 (symmetric) or −1 (skew-symmetric).
     contact_theta: int = 0
     #: Gap width (mm) over which the contact pressure's kink is smoothed (0: exact).
     contact_smoothing: float = 0.0
+    #: Contact parameter γ0: the penalty (or Nitsche) stiffness is γ0 (λ + 2μ)/h.
     contact_gamma0: float = 10.0
     #: A converged state whose subcutaneous J falls below φ0 + margin is rejected.
     compaction_margin: float = 0.02

@@ -52,12 +52,19 @@ class Outputs:
     `data/receptors/`) whose sites are sampled at every step into receptors.csv ("" or false:
     none)."""
 
+    #: Output times (s): profiles, field arrays and pictures (default: the protocol's end).
     times: tuple[float, ...] = ()
+    #: Depths (mm) below the undeformed outer surface of the depth curves.
     depths: tuple[float, ...] = (0.5, 0.75, 1.0)
+    #: Half-width (mm) of the profiles along the pulp and at depth.
     profile_half_width: float = 6.0
+    #: Points sampled along each profile.
     profile_points: int = 241
+    #: With fields = "every-step": fields every this many steps (and at the output times).
     field_every: int = 1
+    #: false: no PNG figures.
     pictures: bool = True
+    #: A receptor set ("default" or a path) sampled at every step into receptors.csv.
     receptors: str = ""
     #: 3D only: z (mm) of the cross-section with the across-finger profiles and depth curves
     #: (default: a sphere's or across-prism's centre_z, else mid-cylinder).
@@ -112,7 +119,9 @@ class Accuracy:
     estimated error is below it, in at most `max_levels` runs; without it (the default) the
     scene runs once on its own mesh."""
 
+    #: Relative error asked of every key output (space and time); none: one run.
     tol: float | None = None
+    #: Most mesh levels of the adaptive loop.
     max_levels: int = 4
 
     def __post_init__(self):

@@ -137,9 +137,9 @@ class Steppable(Protocol):
 class StepOptions:
     """Adaptive time-step control (times in s)."""
 
-    dt_initial: float = 0.1
-    dt_min: float = 1e-5
-    dt_max: float = 10.0
+    dt_initial: float = 0.1  # s: the first step
+    dt_min: float = 1e-5  # s: a step cut below this stops the run
+    dt_max: float = 10.0  # s: the largest step
     growth: float = 1.5  # factor after an easy step
     cut: float = 0.5  # factor after a failed attempt
     max_cuts: int = 8  # failed attempts in a row before giving up
@@ -176,7 +176,7 @@ class StepOptions:
     #: (pressure): the floor that keeps the first steps from rest, where every field is still
     #: tiny, from asking more than Newton's own accuracy (its residual tolerance, snes_atol).
     rtol: float = 1e-3
-    atol: float = 1e-6
+    atol: float = 1e-6  # error control: the absolute floor (mm, MPa), see rtol
     safety: float = 0.9  # the next step aims at safety × the tolerance
 
     def __post_init__(self):

@@ -48,7 +48,16 @@ def tables():
 
 
 def field_comments(cls) -> dict[str, str]:
-    """The `#:` comment lines just above each field of a dataclass, joined."""
+    """The `#:` comment lines just above each field of a dataclass, joined (or the comment
+    on the field's own line), over the class and the classes it inherits fields from."""
+    comments: dict[str, str] = {}
+    for base in reversed(cls.__mro__):
+        if dataclasses.is_dataclass(base):
+            comments |= _own_field_comments(base)
+    return comments
+
+
+def _own_field_comments(cls) -> dict[str, str]:
     try:
         lines, _ = inspect.getsourcelines(cls)
     except (OSError, TypeError):
