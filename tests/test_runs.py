@@ -170,8 +170,9 @@ def test_the_fields_key_is_checked():
 
 def test_the_api_raises_a_keyboard_interrupt_after_writing_the_record(tmp_path, monkeypatch):
     """A SIGINT during a step of `run_scene`: the step ends, the files and summary.json are
-    written, and RunInterrupted (a KeyboardInterrupt) reaches the caller; Python's own Ctrl-C
-    handler is back."""
+    written, and RunInterrupted (a KeyboardInterrupt) reaches the caller; the handler that was
+    there before the run is back (Python's own, or whatever an earlier gmsh call left)."""
+    before = signal.getsignal(signal.SIGINT)
     on_step = Run.on_step
 
     def signal_in_step_two(self, report):
@@ -187,7 +188,7 @@ def test_the_api_raises_a_keyboard_interrupt_after_writing_the_record(tmp_path, 
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["status"] == "interrupted" and summary["end_time_s"] == pytest.approx(0.2)
     assert not summary["converged"]
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    assert signal.getsignal(signal.SIGINT) is before
 
 
 def _interrupt(out: Path, ranks: int, sig: signal.Signals) -> subprocess.CompletedProcess:
