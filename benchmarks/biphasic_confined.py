@@ -7,7 +7,7 @@ Exact limits: at the start the core cannot deform (J = 1) and its pore pressure 
 whole load, p(bottom) = F/W; at the end the column is drained, F = −P22 W with P22 the
 confined hyperfoam stress in closed form (`confined_drained_state`). The strain is small
 because the ramp is fast: the drained top takes the whole travel in a layer ~sqrt(c t0)
-thick, and at 2 % the ν = 0 foam's top approaches compaction (issue 11).
+thick, and at 2 % the ν = 0 foam's top approaches compaction.
 
 `--asked TOL [TOL ...]`: per tolerance asked, the tolerance-driven time control
 (`solver.tolerance_steps`, `solver.verify_time`), what it estimated and what it delivered

@@ -1,4 +1,4 @@
-"""Benchmark: the 3D fingertip mesh (issue 13) at the tests' coarse size and at the built-in
+"""Benchmark: the 3D fingertip mesh at the tests' coarse size and at the built-in
 file's sizes, full and half model. Prints cells, vertices, gmsh quality (minSICN) and edge
 lengths, the wall time of geometry + meshing on rank 0 (MeshReport.seconds) and of the whole
 build (with the distribution), and the region volumes' errors against the closed forms.

@@ -1,4 +1,4 @@
-"""Benchmark: time steps chosen by Newton's effort (today) or by their error (issue 11).
+"""Benchmark: time steps chosen by Newton's effort (today) or by their error.
 
 For two problems it prints, per step-size control: steps, Newton iterations, wall time (the
 time stepping only) and the force error against a reference run with a much tighter tolerance:

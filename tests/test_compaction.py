@@ -1,4 +1,4 @@
-"""Compaction is a physical limit (issue 11): the time stepper recognises the approach to
+"""Compaction is a physical limit: the time stepper recognises the approach to
 J = φ0 where it first happens (nodes included), stops at once with a `CompactionError` that
 names compaction, the time, the place, the permeability and what it means, keeps the results
 up to the last good step, and prints times that can be told apart.

@@ -1,4 +1,4 @@
-"""The 3D model's exact checks (issue 13): Hertz's sphere, the confined biphasic column against
+"""The 3D model's exact checks: Hertz's sphere, the confined biphasic column against
 the plane-strain one, and the equilibrium of a layered block through the fingertip problem.
 
 - Hertz (`studies.problems.HertzSphere`): a rigid sphere on a linear-elastic quarter block,

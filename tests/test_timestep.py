@@ -1,4 +1,4 @@
-"""Time integration and step-size control (issue 11): the observed orders of backward Euler (1)
+"""Time integration and step-size control: the observed orders of backward Euler (1)
 and BDF2 (2) on Terzaghi's consolidation and of the QLV recursion (2) on a smooth history,
 Milne's error constants, and error control on the confined ramp-and-hold of the Holmes–Mow
 tissue against a converged reference.

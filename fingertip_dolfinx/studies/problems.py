@@ -587,7 +587,7 @@ class ConfinedRelaxation(PlatenRelaxation):
     p(bottom) = F/W. The layer above the front takes the whole travel; the linear solution
     for a displacement ramp u = V t into a drained half-space puts its top strain at
     2 V sqrt(t/(π c)), i.e. 2ε/sqrt(π τ0) at the ramp's end (τ0 = t0/t_c): a fast ramp
-    compacts the top (issue 11). The defaults balance the two: τ0 = 0.002 keeps the lower
+    compacts the top. The defaults balance the two: τ0 = 0.002 keeps the lower
     half undrained to e^(−1/(16 τ0)) ≈ 3e-14 and a 1 % strain puts the top strain near 0.25.
     """
 
@@ -1050,7 +1050,7 @@ def contact_edge(x: np.ndarray, trial: np.ndarray) -> float:
 
 # ---- a layered 3D block with the fingertip's tags ---------------------------------------------
 
-#: The 3D facet tags agreed in issue 13 (the 3D mesh module adds them to mesh.FACET_TAGS).
+#: The 3D facet tags (the 3D mesh module adds them to mesh.FACET_TAGS).
 TAGS_3D = {"symmetry": 15, "proximal_cut": 16}
 #: Slab tops (mm) of the layered block from its bottom y = −3: skin 0.5 mm, subcutaneous 3 mm,
 #: bone 0.5 mm, nail 0.5 mm (round numbers of the section's proportions, not its geometry).
