@@ -115,9 +115,8 @@ class FingertipProblem:
         self.gdim = msh.geometry.dim
         #: Compiler flags of the Newton forms (solver.TimeStepper passes them on): None, the
         #: defaults, in 2D. The 3D hyperfoam's Jacobian (three principal stretches with their
-        #: series branches, per term and region) is a very long C function: gcc -O2 spent more
-        #: than 10 min on it here (not finished), -O1 161 s in all, -O0 about the same (so the
-        #: rest is FFCx); the -O2 code's assembly speed could not be measured for that reason.
+        #: series branches, per term and region) is a very long C function, which gcc compiles
+        #: far faster at -O1 than at -O2 (times: docs/benchmarks/measurements.md).
         self.jit_options = JIT_OPTIONS_3D if self.gdim == 3 else None
         self.V = fem.functionspace(msh, ("Lagrange", options.displacement_degree, (self.gdim,)))
         self.u = fem.Function(self.V, name="displacement")

@@ -202,11 +202,8 @@ def run_sweep(scene_name: str, spacings, out: Path, overrides=(), progress=True,
 def sweep_scenes(scene_name: str, spacings, overrides=(), spots: bool = False) -> list:
     """The scene at each spacing. With `spots`, a disc of `section.mesh.spot_size` around each
     point where `normalized_variation` reads the fields: under both bar centres and midway, at
-    the first output depth. Measured on the 2pt sweep over 1.5-4 mm (9 spacings, against a
-    three-level Richardson value per spacing from the 0.1/0.071/0.05 mm meshes): min_size
-    0.14 mm with spots of 0.05 mm, ~16 900 unknowns, every key output within 0.91 %, 57 s CPU
-    in all; the scene's 0.1 mm mesh, 18 455 unknowns, is up to 1.63 % off (the SED peak at
-    2.75 mm), 136 s; min_size 0.2 mm with spots, ~14 000, up to 1.27 %, 49 s."""
+    the first output depth: the key outputs there are read on fine elements while the rest of
+    the mesh stays coarse (the accuracy bought: docs/benchmarks/measurements.md)."""
     from .scene import load_scene
 
     scenes = []

@@ -57,10 +57,8 @@ r(t) = k [s0 + a sin θ]+, whose cycle mean is k s0 for a <= s0 (no response to 
 average: this model has no rate sensitivity) and k [s0 (1/2 + β/π) + a cos β / π],
 β = arcsin(s0/a), above.
 
-Measured (`PYTHONPATH=. python benchmarks/vibrotactile_thresholds.py`, 2 cores): 40
-frequencies (2-1000 Hz) × 20 sites, both thresholds: SA1 4.6 s (each site its own lane: its
-static weight reads s0), RA 2.6 s, PC 2.0 s; 9.2 s for the three classes. The transduction has
-no high-frequency roll-off of its own (TouchSim's input low-pass is left out, see
+Timings: docs/benchmarks/measurements.md (`benchmarks/vibrotactile_thresholds.py`). The
+transduction has no high-frequency roll-off of its own (TouchSim's input low-pass is left out, see
 `receptors.threshold_amplitude`): with a frequency-independent H, RA thresholds fall as 1/f and
 PC's as 1/f² without end; any U shape must come from the mechanics' H.
 """
