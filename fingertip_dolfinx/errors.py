@@ -2,11 +2,29 @@
 
 
 class FingertipError(Exception):
-    """Base class of every error this package raises on purpose."""
+    """Base class of every error this package raises on purpose.
+
+    Catch it to handle any failure of an input or of a computation; an error that is not one
+    of these is a bug.
+    """
 
 
 class InputError(FingertipError, ValueError):
-    """A value in a data file or on the command line is impossible or non-physical."""
+    """A value in a data file or on the command line is impossible or non-physical.
+
+    The message reads ``"{where}: {problem} Fix: {fix}"``; the command line prints it as one
+    line and exits with status 2.
+
+    Parameters
+    ----------
+    where : str
+        Where the value came from and its key (``"--set protocol.depth=-1: protocol.depth"``,
+        a file and a table, a Python override).
+    problem : str
+        What is wrong with the value.
+    fix : str or None, optional
+        What to do instead; None when the problem says it.
+    """
 
     def __init__(self, where: str, problem: str, fix: str | None = None):
         self.where, self.problem, self.fix = where, problem, fix
@@ -17,7 +35,12 @@ class InputError(FingertipError, ValueError):
 
 
 class ConvergenceError(FingertipError, RuntimeError):
-    """A time step could not be solved even after repeated step cuts."""
+    """A time step could not be solved even after repeated step cuts.
+
+    The run has saved its results up to the last good step, and summary.json says
+    ``"status": "failed"`` and why. The message names the time, the load, the reason and the
+    place where the residual is largest (the command line exits with status 1).
+    """
 
 
 class CompactionError(ConvergenceError):
@@ -25,7 +48,8 @@ class CompactionError(ConvergenceError):
 
     A physical limit, not a numerical failure: the load is too fast or too large for the
     permeability, and smaller time steps cannot help. A `ConvergenceError`, so that a run
-    that ends on it saves its results up to the last good step like any failed run."""
+    that ends on it saves its results up to the last good step like any failed run.
+    """
 
 
 class MaterialInstabilityError(FingertipError, RuntimeError):
@@ -33,12 +57,21 @@ class MaterialInstabilityError(FingertipError, RuntimeError):
 
 
 class RunInterrupted(KeyboardInterrupt):
-    """A run stopped by SIGINT (Ctrl-C) or SIGTERM at a step boundary, after writing its files
-    and summary.json (`"status": "interrupted"`); `--resume` continues it.
+    """A run stopped by SIGINT (Ctrl-C) or SIGTERM at a step boundary.
 
-    A KeyboardInterrupt, so that Python code keeps Ctrl-C's meaning (it is not caught by
-    `except Exception`); `time` is the last time reached (s), `signal` the signal's name,
-    `summary` the summary written."""
+    Raised after the run has written its files and summary.json (``"status":
+    "interrupted"``); ``resume=True`` (``--resume``) continues it. A KeyboardInterrupt, so that
+    Python code keeps Ctrl-C's meaning (it is not caught by ``except Exception``).
+
+    Parameters
+    ----------
+    time : float
+        The last time reached (s).
+    signal : str
+        The signal's name.
+    summary : dict
+        The summary written (summary.json's content).
+    """
 
     def __init__(self, time: float, signal: str, summary: dict):
         self.time, self.signal, self.summary = time, signal, summary

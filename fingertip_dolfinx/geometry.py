@@ -141,7 +141,34 @@ class Nail:
 
 @dataclass(frozen=True)
 class MeshOptions:
-    """Target element sizes (mm) and element kind; checked on construction."""
+    """Target element sizes (mm) and element kind of a section's mesh; checked on construction.
+
+    Parameters
+    ----------
+    min_size : float, optional
+        Size in the refinement zone under the pulp, where indenters act.
+    max_size : float, optional
+        Size everywhere else in the soft tissue, skin and nail.
+    bone_size : float, optional
+        Size deep inside the (nearly rigid) bone.
+    refine_half_width, refine_depth : float, optional
+        The refinement zone: |x| below this on the pulp surface, down to this depth under it.
+    quadrilateral : bool, optional
+        Recombine into quadrilaterals (Q2/Q1) instead of triangles.
+    tips : tuple of float, optional
+        x of the pulp points where a sharp indenter tip acts: each gets a disc of radius
+        `tip_zone` meshed at `tip_size`, with a mesh vertex exactly at the point.
+    tip_size, tip_zone : float, optional
+        Size (below the tip radius) and radius of those discs.
+    spots : tuple of (float, float), optional
+        (x, depth) points where a key output peaks inside the tissue: each gets a disc of radius
+        `spot_zone` meshed at `spot_size`.
+    spot_size, spot_zone : float, optional
+        Size and radius of those discs.
+    size_map : str, optional
+        An .npz size map (points and sizes, written by the adaptive loop): the size there, where
+        finer than the fields above; ``""``: none.
+    """
 
     min_size: float = 0.1  # in the refinement zone under the pulp, where indenters act
     max_size: float = 0.4  # everywhere else in the soft tissue, skin and nail
@@ -223,7 +250,34 @@ class MeshOptions:
 
 @dataclass(frozen=True)
 class Section:
-    """A validated fingertip cross-section (all lengths mm, angles deg)."""
+    """A validated fingertip cross-section (all lengths mm, angles deg).
+
+    The skin is the layer between the outer ellipse and its inward parallel curve at the skin
+    thickness; the subcutaneous tissue fills the rest around the bone; the nail is a plate on the
+    dorsal arc. Every value is checked on construction.
+
+    Parameters
+    ----------
+    outer : Ellipse, optional
+        The outer surface (semi-axes 8 × 7 mm by default).
+    skin_thickness : float, optional
+        The skin's thickness (0.8 mm: Wu et al. 2004).
+    bone : Ellipse, optional
+        The distal phalanx, off centre towards the nail.
+    nail : Nail, optional
+        The nail plate: thickness and the half-angle of the dorsal arc it covers.
+    pulp_half_angle : float, optional
+        The pulp surface is the arc within this angle of −y (90: the whole palmar half).
+    mesh : MeshOptions, optional
+        The mesh sizes.
+    name : str, optional
+        The section's name (its file name).
+
+    Raises
+    ------
+    InputError
+        If a layer does not fit (e.g. the bone leaves the subcutaneous tissue), naming the fix.
+    """
 
     outer: Ellipse = Ellipse(8.0, 7.0)
     skin_thickness: float = 0.8
@@ -424,10 +478,20 @@ def section_path(source: str | Path) -> Path:
 
 
 def load_section(source: str | Path = "male-index", overrides: dict | None = None) -> Section:
-    """Read and validate a section (with its `[mesh]` options) from a built-in name or a path.
+    """Read and validate a section (with its ``[mesh]`` options) from a built-in name or a path.
 
-    Keys left out keep the defaults of `Section` (those of the built-in `male-index`).
-    `overrides` has the tables of a section file ({"mesh": {"min_size": 0.05}}) and wins.
+    Parameters
+    ----------
+    source : str or Path, optional
+        A built-in section's name (``"male-index"``) or a section TOML file. Keys left out keep
+        the defaults of `Section` (those of ``male-index``).
+    overrides : dict or None, optional
+        Tables of a section file (``{"mesh": {"min_size": 0.05}}``); they win.
+
+    Returns
+    -------
+    Section
+        The validated section.
     """
     path = section_path(source)
     data = read_toml(path)

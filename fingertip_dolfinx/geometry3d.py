@@ -57,7 +57,34 @@ DEFAULT_MESH_3D = MeshOptions(min_size=0.4, max_size=1.0, bone_size=2.0)
 
 @dataclass(frozen=True)
 class Fingertip3D:
-    """A validated 3D distal fingertip (mm)."""
+    """A validated 3D distal fingertip (mm): the 2D section carried along z, closed by a tip.
+
+    x across the finger, y from the pulp to the nail, z along the finger from the proximal cut
+    (z = 0). Every value is checked on construction.
+
+    Parameters
+    ----------
+    section : Section, optional
+        The cross-section carried along z (outer, skin, bone, nail, mesh).
+    cylinder_length : float, optional
+        L: the elliptic cylinder from z = 0 to z = L.
+    tip_length : float, optional
+        c: the cap's semi-axis along z; the tip is at z = L + c.
+    bone_length : float, optional
+        z of the bone's rounded end.
+    bone_taper : float, optional
+        The bone ellipse's size where its end cap starts, over its size at z = 0.
+    bone_end_length : float, optional
+        Length along z of the bone's half-ellipsoidal end.
+    nail_start_z, nail_end_z : float, optional
+        Where the nail plate starts and ends along z.
+    refine_z_min, refine_z_max : float, optional
+        The refinement zone's extent along z (under the pulp, |x| < ``mesh.refine_half_width``).
+    half : bool, optional
+        Keep only x >= 0, with the symmetry plane x = 0 (forces are then half the finger's).
+    name : str, optional
+        The fingertip's name (its file name).
+    """
 
     #: The cross-section carried along z (a 2D section's tables: outer, skin, bone, nail, mesh).
     section: Section = field(default_factory=lambda: Section(mesh=DEFAULT_MESH_3D))
@@ -310,10 +337,20 @@ def section_dimension(source) -> int:
 
 
 def load_fingertip3d(source="male-index-3d", overrides: dict | None = None) -> Fingertip3D:
-    """Read and validate a 3D fingertip from a built-in name or a TOML path (`dimension = 3`).
+    """Read and validate a 3D fingertip from a built-in name or a TOML path (``dimension = 3``).
 
-    Keys left out keep the defaults of `Fingertip3D`; `overrides` has the tables of the file
-    ({"mesh": {"min_size": 0.8}}, {"half": True}) and wins.
+    Parameters
+    ----------
+    source : str or Path, optional
+        A built-in name (``"male-index-3d"``) or a TOML file. Keys left out keep the defaults
+        of `Fingertip3D`.
+    overrides : dict or None, optional
+        Tables of the file (``{"mesh": {"min_size": 0.8}}``, ``{"half": True}``); they win.
+
+    Returns
+    -------
+    Fingertip3D
+        The validated fingertip.
     """
     path = section_path(source)
     data = read_toml(path)

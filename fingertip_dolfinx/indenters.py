@@ -95,7 +95,7 @@ class Indenter:
         return phi, ufl.as_vector(n)
 
     def signed_distance_np(self, points, y_tip: float) -> tuple[np.ndarray, np.ndarray]:
-        """numpy (φ of shape (m,), n of shape (m, d)) at `points` of shape (m, d), d = 2 or 3.
+        """The numpy form: φ of shape (m,), n of shape (m, d) at `points` (m, d), d = 2 or 3.
 
         A 2D section's points given with a third column (z = 0) are 3D points: a "z" prism's φ
         does not depend on z, so φ is the section's; n gets a third component 0."""
@@ -150,7 +150,13 @@ def penetration(indenter: Indenter, points, y_tip: float) -> np.ndarray:
 
 @dataclass(frozen=True, kw_only=True)
 class Plate(_Prism):
-    """A flat rigid plate filling y < y_tip (centre_x plays no part)."""
+    """A flat rigid plate filling y < y_tip.
+
+    Parameters
+    ----------
+    centre_x : float, optional
+        Plays no part (kept for a uniform interface).
+    """
 
     shape: ClassVar[str] = "plate"
 
@@ -160,7 +166,17 @@ class Plate(_Prism):
 
 @dataclass(frozen=True, kw_only=True)
 class Cylinder(_Prism):
-    """A rigid cylinder (a disc in the section) of the given radius; in 3D its axis is `axis`."""
+    """A rigid cylinder: a disc in the 2D section; in 3D a prism along `axis`.
+
+    Parameters
+    ----------
+    radius : float
+        The radius (mm).
+    centre_x, centre_z : float, optional
+        Position of the axis across (and, in 3D, along) the finger (mm).
+    axis : str, optional
+        3D: ``"z"`` along the finger (the plane-strain load) or ``"x"`` across it.
+    """
 
     radius: float  # mm
     shape: ClassVar[str] = "cylinder"
@@ -201,9 +217,22 @@ class _RoundCone(_Prism):
 
 @dataclass(frozen=True, kw_only=True)
 class Wedge(_RoundCone):
-    """A symmetric wedge, tip up: round tip of `tip_radius`, flanks through the base corners.
+    """A symmetric wedge, tip up: a round tip of `tip_radius`, flanks through the base corners.
 
     The flanks are tangent to the tip circle and pass through (centre_x ± base/2, y_tip − height).
+
+    Parameters
+    ----------
+    tip_radius : float
+        Radius of the round tip (mm; the paper's 50 µm tip is 0.025), at most base/2.
+    base : float
+        Width of the wedge at `height` below its tip (mm).
+    height : float
+        The height at which `base` is measured (mm); with the tip radius it sets the flank angle.
+    centre_x, centre_z : float, optional
+        Position of the tip across (and, in 3D, along) the finger (mm).
+    axis : str, optional
+        3D: ``"z"`` along the finger (the plane-strain line load) or ``"x"`` across it.
     """
 
     tip_radius: float  # mm: the round tip
@@ -239,7 +268,17 @@ class Wedge(_RoundCone):
 
 @dataclass(frozen=True, kw_only=True)
 class Bar(_RoundCone):
-    """A bar of the given width with vertical flanks and a semicircular tip."""
+    """A bar with vertical flanks and a semicircular tip (the one- and two-point tests).
+
+    Parameters
+    ----------
+    width : float
+        The bar's width (mm); the tip's radius is width/2.
+    centre_x, centre_z : float, optional
+        Position of the tip across (and, in 3D, along) the finger (mm).
+    axis : str, optional
+        3D: ``"z"`` along the finger or ``"x"`` across it.
+    """
 
     width: float  # mm (the tip's radius is half of it)
     shape: ClassVar[str] = "bar"
@@ -302,8 +341,24 @@ def make_indenter(data: dict[str, Any], where: str = "indenter") -> Indenter:
 
 
 def load_indenter(source: str | Path) -> Indenter:
-    """A built-in indenter by name ("wedge", "bar", "plate", "cylinder", "sphere") or a TOML
-    file path."""
+    """Read an indenter from a built-in name or a TOML file.
+
+    Parameters
+    ----------
+    source : str or Path
+        ``"wedge"``, ``"bar"``, ``"plate"``, ``"cylinder"``, ``"sphere"`` or a path to a TOML
+        file with ``shape`` and its sizes.
+
+    Returns
+    -------
+    Indenter
+        The validated indenter.
+
+    Raises
+    ------
+    InputError
+        For a missing file, an unknown shape or a bad size.
+    """
     path = find("indenters", source, "indenter")
     data = read_toml(path)
     return make_indenter(data, where=str(path))

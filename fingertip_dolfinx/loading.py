@@ -40,8 +40,17 @@ class LoadHistory(Protocol):
 
 @dataclass(frozen=True)
 class PiecewiseLinear:
-    """d(t) through the points (times[i], values[i]), constant after the last point until
-    `end_time` (default: the last point's time)."""
+    """Indentation d(t) through the points (times[i], values[i]), constant after the last point.
+
+    Parameters
+    ----------
+    times : tuple of float
+        Increasing times (s), the first 0.
+    values : tuple of float
+        Indentation (mm after first touch) at each time.
+    end_time : float or None, optional
+        The protocol's end (s); None: the last point's time.
+    """
 
     times: tuple[float, ...]  # s, from 0, increasing
     values: tuple[float, ...]  # mm of indentation after first touch, one per time
@@ -80,7 +89,17 @@ class PiecewiseLinear:
 
 @dataclass(frozen=True)
 class RampHold:
-    """The paper's protocol: ramp to `depth` over `ramp_time`, then hold until `end_time`."""
+    """The paper's protocol: ramp to `depth` over `ramp_time`, then hold until `end_time`.
+
+    Parameters
+    ----------
+    depth : float
+        The indentation reached (mm after first touch), positive.
+    ramp_time : float
+        Duration of the linear ramp (s).
+    end_time : float
+        End of the hold (s), at least `ramp_time`.
+    """
 
     depth: float  # mm of indentation after first touch
     ramp_time: float  # s
@@ -112,8 +131,23 @@ class RampHold:
 
 @dataclass(frozen=True)
 class Sinusoid:
-    """d(t) = offset + amplitude·sin(2π f t + phase) for 0 <= t <= end_time (vibrotactile
-    stimuli). `phase_deg = -90` with `offset = amplitude` starts from rest: d = A(1 − cos 2πft)."""
+    """Indentation d(t) = offset + amplitude·sin(2π f t + phase) for 0 <= t <= end_time.
+
+    ``phase_deg = -90`` with ``offset = amplitude`` starts from rest: d = A(1 − cos 2πft).
+
+    Parameters
+    ----------
+    amplitude : float
+        Amplitude (mm).
+    frequency : float
+        Frequency f (Hz).
+    end_time : float
+        The protocol's end (s).
+    offset : float, optional
+        Mean indentation (mm).
+    phase_deg : float, optional
+        Phase at t = 0 (degrees).
+    """
 
     amplitude: float  # mm
     frequency: float  # Hz
@@ -155,18 +189,34 @@ class Vibration:
              = depth + w(t − t_on) Σ_k A_k sin(2π f_k (t − t_on))  t_on <= t <= end_time
 
     with t_on = ramp_time + hold_time (the `pressing` part is a `RampHold` ending at t_on) and
-    `cycles` periods of the slowest frequency after it. `amplitudes` (mm) and `frequencies` (Hz)
-    pair up (a sum of sinusoids; one of each is a pure tone). Without a fade (w = 1) the
-    vibration starts at the pressed depth with the velocity Σ 2π f_k A_k: t_on is a kink of the
-    load (a breakpoint), and the jump in velocity strikes every free mode of the fingertip.
+    `cycles` periods of the slowest frequency after it. Without a fade (w = 1) the vibration
+    starts at the pressed depth with the velocity Σ 2π f_k A_k: t_on is a kink of the load (a
+    breakpoint), and the jump in velocity strikes every free mode of the fingertip.
 
-    `fade_in` (periods of the slowest frequency, counted within `cycles`) lets the amplitude rise
-    over T_f = fade_in/min(f_k) along w(s) = x − sin(2πx)/(2π), x = s/T_f (1 after T_f): w, w'
-    and w'' are continuous at both ends (C2), so the load has no kink, and w' is a Hann window,
-    whose spectrum falls as 1/(Δf T_f)³ beyond its main lobe |Δf| < 2/T_f: a free mode of the
-    fingertip at f_n ≠ f_k is struck with a relative strength of that order instead of O(1)
-    (the two-routes comparison, benchmarks/two_routes.py, needs a steady state of a nearly
-    undamped model).
+    With a fade the amplitude rises over T_f = fade_in/min(f_k) along w(s) = x − sin(2πx)/(2π),
+    x = s/T_f (1 after T_f): w, w' and w'' are continuous at both ends (C2), so the load has no
+    kink, and w' is a Hann window, whose spectrum falls as 1/(Δf T_f)³ beyond its main lobe
+    |Δf| < 2/T_f: a free mode of the fingertip at f_n ≠ f_k is struck with a relative strength of
+    that order instead of O(1) (the two-routes comparison, benchmarks/two_routes.py, needs a
+    steady state of a nearly undamped model).
+
+    Parameters
+    ----------
+    depth : float
+        The pressed indentation (mm after first touch).
+    ramp_time : float
+        Duration of the press (s).
+    hold_time : float
+        Duration of the hold before the vibration (s).
+    amplitudes : tuple of float
+        Amplitude A_k of each tone (mm).
+    frequencies : tuple of float
+        Frequency f_k of each tone (Hz), paired with `amplitudes` (one of each: a pure tone).
+    cycles : float, optional
+        Periods of the slowest frequency after t_on.
+    fade_in : float, optional
+        Periods of the slowest frequency, counted within `cycles`, over which the amplitude
+        rises; 0: none.
     """
 
     depth: float  # mm: the pressed depth

@@ -112,15 +112,30 @@ def _volume_term(detC, alpha: float, beta: float) -> ufl.core.expr.Expr:
 
 @dataclass(frozen=True)
 class Hyperfoam:
-    """W = Σ_i 2μ_i/α_i² [λ1^α_i + λ2^α_i + λ3^α_i − 3 + (J^(−α_i β_i) − 1)/β_i],
-    β_i = ν_i/(1 − 2ν_i), the ABAQUS *HYPERFOAM energy.
+    """The compressible Ogden foam of ABAQUS (``*HYPERFOAM``), Storåkers' form.
 
-    `nu` is one Poisson ratio for every term (the paper; kept as the float given) or one per
-    term (ABAQUS's ν_i; kept as a tuple); `betas` gives β_i per term either way. ν_i = 0 is
-    allowed: the volume term is then its limit −α_i ln J, built exactly (no 0/0).
-    Individual μ_i may be negative (the paper's fits have one); what small-strain stability
-    needs is μ0 = Σμ_i > 0 and K0 = Σ 2μ_i(1/3 + β_i) > 0, which is what is required here.
-    Large-strain stability is the business of `drucker.drucker_check`.
+    W = Σ_i 2μ_i/α_i² [λ1^α_i + λ2^α_i + λ3^α_i − 3 + (J^(−α_i β_i) − 1)/β_i],
+    β_i = ν_i/(1 − 2ν_i). ν_i = 0 is allowed: the volume term is then its limit −α_i ln J,
+    built exactly (no 0/0). Individual μ_i may be negative (the paper's fits have one); what
+    small-strain stability needs is μ0 = Σμ_i > 0 and K0 = Σ 2μ_i(1/3 + β_i) > 0, which is what
+    is required here. Large-strain stability is the business of `drucker.drucker_check`.
+
+    Parameters
+    ----------
+    mu : tuple of float
+        The moduli μ_i (MPa).
+    alpha : tuple of float
+        The exponents α_i, one per μ_i.
+    nu : float or tuple of float
+        One Poisson ratio for every term (the paper; kept as the float given) or one per term
+        (ABAQUS's ν_i; kept as a tuple); `betas` gives β_i per term either way.
+    where : str, optional
+        Where the values came from, for messages.
+
+    Raises
+    ------
+    InputError
+        If the lengths differ or μ0, K0 are not positive.
     """
 
     mu: tuple[float, ...]  # MPa
@@ -220,7 +235,7 @@ class Hyperfoam:
     # ---- numpy closed forms (checks, stability) --------------------------------------------
     def principal_kirchhoff(self, stretches) -> np.ndarray:
         """τ_a = Σ_i (2μ_i/α_i)(λ_a^α_i − J^(−α_i β_i)); stretches (..., 3) -> (..., 3), MPa.
-        (β_i = 0: J^0 = 1 exactly.)"""
+        (β_i = 0: J^0 = 1 exactly)."""
         lam = np.asarray(stretches, dtype=float)
         J = np.prod(lam, axis=-1)[..., None, None]
         mu, al, b = np.asarray(self.mu), np.asarray(self.alpha), np.asarray(self.betas)
@@ -251,6 +266,15 @@ class LinearElastic:
     rotation would produce stress); SVK uses the Green–Lagrange strain, so it is, and it
     reduces to Hooke's law at small strain — which is all the paper's "linear elastic" asks.
     Plane strain: the 2×2 E is the in-plane part (E33 = 0).
+
+    Parameters
+    ----------
+    E : float
+        Young's modulus (MPa), positive.
+    nu : float
+        Poisson's ratio, in (−1, 0.5).
+    where : str, optional
+        Where the values came from, for messages.
     """
 
     E: float  # MPa
@@ -312,7 +336,20 @@ def strain_energy_density(material, F) -> ufl.core.expr.Expr:
 
 @dataclass(frozen=True)
 class Prony:
-    """g(t) = 1 − Σ g_i (1 − exp(−t/τ_i)) = g∞ + Σ g_i exp(−t/τ_i), g∞ = 1 − Σ g_i."""
+    """Relaxation function g(t) = 1 − Σ g_i (1 − exp(−t/τ_i)) = g∞ + Σ g_i exp(−t/τ_i).
+
+    g∞ = 1 − Σ g_i is the long-term ratio. Applied to the second Piola–Kirchhoff stress
+    (quasi-linear viscoelasticity, `viscoelasticity.py`).
+
+    Parameters
+    ----------
+    g : tuple of float
+        The ratios g_i, each in (0, 1), their sum below 1.
+    tau : tuple of float
+        The relaxation times τ_i (s), one per ratio.
+    where : str, optional
+        Where the values came from, for messages.
+    """
 
     g: tuple[float, ...]
     tau: tuple[float, ...]  # s
@@ -355,7 +392,23 @@ class Prony:
 
 @dataclass(frozen=True)
 class HolmesMow:
-    """k(J) = k0 ((J − φ0)/(1 − φ0))^κ exp(M (J² − 1)/2); undefined for J ≤ φ0 (compaction)."""
+    """Holmes–Mow permeability k(J) = k0 ((J − φ0)/(1 − φ0))^κ exp(M (J² − 1)/2).
+
+    Undefined for J ≤ φ0: the pores are closed (compaction).
+
+    Parameters
+    ----------
+    k0 : float
+        The permeability of the undeformed tissue (mm⁴/(N·s)).
+    phi0 : float
+        The solid volume fraction, in (0, 1).
+    kappa : float
+        The exponent of the porosity term.
+    M : float
+        The exponent of the exponential stiffening.
+    where : str, optional
+        Where the values came from, for messages.
+    """
 
     k0: float  # mm⁴/(N·s)
     phi0: float  # solid volume fraction in the reference state
@@ -392,7 +445,15 @@ class HolmesMow:
 
 @dataclass(frozen=True)
 class ConstantPermeability:
-    """k(J) = k0: a deformation-independent permeability (small strains, or a reference case)."""
+    """A deformation-independent permeability k(J) = k0 (small strains, or a reference case).
+
+    Parameters
+    ----------
+    k0 : float
+        The permeability (mm⁴/(N·s)).
+    where : str, optional
+        Where the value came from, for messages.
+    """
 
     k0: float  # mm⁴/(N·s)
     where: str = field(default="constant permeability", compare=False, repr=False)
@@ -416,9 +477,22 @@ class ConstantPermeability:
 
 @dataclass(frozen=True)
 class Biphasic:
-    """Solid (hyperfoam) + inviscid fluid, with a permeability law and the solid volume
-    fraction φ0 (J may not fall to φ0: the pores would be closed). φ0 defaults to the
-    permeability law's own (Holmes–Mow carries one) and must agree with it if both are given."""
+    """A hyperfoam solid and an inviscid fluid, with a permeability law (the subcutaneous tissue).
+
+    J may not fall to the solid volume fraction φ0: the pores would be closed.
+
+    Parameters
+    ----------
+    solid : Hyperfoam
+        The solid's drained elastic law.
+    permeability : HolmesMow or ConstantPermeability
+        The permeability law.
+    phi0 : float or None, optional
+        The solid volume fraction; None: the permeability law's own (Holmes–Mow carries one). If
+        both are given they must agree.
+    where : str, optional
+        Where the values came from, for messages.
+    """
 
     solid: Hyperfoam
     permeability: HolmesMow | ConstantPermeability

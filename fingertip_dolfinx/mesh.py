@@ -139,12 +139,25 @@ def build_mesh(
     progress: Callable[[str], None] | None = None,
     size: Callable[[float, float], float] | None = None,
 ) -> FingertipMesh:
-    """Mesh `section` with its `section.mesh` options; gmsh runs on rank 0 of `comm`.
+    """Mesh a 2D section with its ``section.mesh`` options; gmsh runs on rank 0 of `comm`.
 
-    `progress(message)` is called on rank 0 as the work advances (for a status display).
-    `size(x, y)` (mm; needed on rank 0 only), or else the file `section.mesh.size_map` (a
-    `SizeMap`), refines the mesh further: the size at a point is the smaller of the section's
-    fields and this one. Without either the mesh is exactly the one the options alone give.
+    Parameters
+    ----------
+    section : Section
+        The cross-section and its mesh sizes.
+    comm : MPI.Comm, optional
+        The communicator the mesh is distributed over.
+    progress : callable or None, optional
+        ``progress(message)``, called on rank 0 as the work advances (for a status display).
+    size : callable or None, optional
+        ``size(x, y)`` (mm; needed on rank 0 only), or else the file ``section.mesh.size_map``,
+        refines the mesh further: the size at a point is the smaller of the section's fields
+        and this one. Without either the mesh is exactly the one the options alone give.
+
+    Returns
+    -------
+    FingertipMesh
+        The distributed mesh with its cell (region) and facet (boundary) tags.
     """
     say = progress if progress is not None and comm.rank == 0 else (lambda message: None)
     if size is None and section.mesh.size_map and comm.rank == 0:

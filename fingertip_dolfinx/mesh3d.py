@@ -69,7 +69,22 @@ GLUE = 1e-2
 
 def build_mesh3d(tip: Fingertip3D, comm: MPI.Comm = MPI.COMM_WORLD,
                  progress: Callable[[str], None] | None = None) -> FingertipMesh:
-    """Mesh `tip` with its `tip.section.mesh` sizes; gmsh runs on rank 0 of `comm`."""
+    """Mesh a 3D fingertip with its ``tip.section.mesh`` sizes; gmsh runs on rank 0 of `comm`.
+
+    Parameters
+    ----------
+    tip : Fingertip3D
+        The fingertip and its mesh sizes.
+    comm : MPI.Comm, optional
+        The communicator the mesh is distributed over.
+    progress : callable or None, optional
+        ``progress(message)``, called on rank 0 as the work advances.
+
+    Returns
+    -------
+    FingertipMesh
+        The distributed tetrahedral mesh with its cell and facet tags.
+    """
     say = progress if progress is not None and comm.rank == 0 else (lambda message: None)
     with _gmsh_model() if comm.rank == 0 else contextlib.nullcontext():
         report = _generate(tip, say) if comm.rank == 0 else None

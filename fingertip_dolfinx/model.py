@@ -62,7 +62,45 @@ TISSUE_MODELS = ("layered", "continuum")
 
 @dataclass(frozen=True)
 class ModelOptions:
-    """Discretisation and modelling choices of one run."""
+    """Discretisation and modelling choices of one run (a scene's ``[model]`` table).
+
+    Parameters
+    ----------
+    displacement_degree : int, optional
+        Lagrange degree of the displacement (1, 2 or 3); the pore pressure is one lower
+        (Taylor–Hood).
+    quadrature_degree : int, optional
+        Quadrature degree of the volume integrals and the QLV internal variables.
+    skin_viscoelastic : bool, optional
+        The skin's QLV history; False: its instantaneous elasticity.
+    tissue : str, optional
+        ``"layered"`` (four regions, each its law) or ``"continuum"`` (one homogeneous
+        small-strain linear-elastic section).
+    continuum_E, continuum_nu : float, optional
+        Young's modulus (MPa) and Poisson's ratio of the ``"continuum"`` model.
+    subcutaneous : str, optional
+        ``"biphasic"`` (pore pressure unknown), ``"undrained"`` (no flow) or ``"drained"``
+        (the solid alone, p = 0).
+    rigid_bone : bool, optional
+        Bone and nail rigid and clamped instead of elastic and held at the nail centre.
+    contact : str, optional
+        ``"nitsche"`` (consistent) or ``"penalty"`` (robust at sharp tips, conservative).
+    contact_theta : int, optional
+        Nitsche variant: 0, +1 (symmetric) or −1 (skew-symmetric).
+    contact_smoothing : float, optional
+        Gap width (mm) over which the contact pressure's kink is smoothed (0: exact).
+    contact_gamma0 : float, optional
+        γ0: the contact stiffness is γ0 (λ + 2μ)/h.
+    compaction_margin : float, optional
+        A converged state whose subcutaneous J falls below φ0 + margin is rejected.
+    inertia : bool, optional
+        Add the tissues' inertia (a dynamic run, generalised-α); False: quasi-static.
+
+    Raises
+    ------
+    InputError
+        For an unknown choice or an inconsistent pair (e.g. P1 with a pore pressure).
+    """
 
     #: Lagrange degree of the displacement (1, 2 or 3); the pore pressure is one degree lower
     #: (Taylor–Hood).

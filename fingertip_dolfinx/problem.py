@@ -87,8 +87,21 @@ JIT_OPTIONS_3D = {"cffi_extra_compile_args": ["-O1", "-g0"]}
 class FingertipProblem:
     """Forms, unknowns, supports and loads of the fingertip under rigid indenters.
 
-    `indenters` move together as one rigid holder along `history` (indentation depth, mm,
-    measured from first touch). Implements the `solver.Steppable` protocol.
+    The indenters move together as one rigid holder along the protocol. Implements the
+    `solver.Steppable` protocol: `TimeStepper` advances it in time.
+
+    Parameters
+    ----------
+    fmesh : FingertipMesh
+        The tagged mesh (`build_mesh`, `build_mesh3d`).
+    indenters : sequence of Indenter
+        The rigid indenters.
+    history : LoadHistory or callable
+        The indentation d(t) (mm after first touch) as a function of time (s).
+    tissues : Tissues, optional
+        The materials of the four regions.
+    options : ModelOptions, optional
+        The modelling and discretisation choices.
     """
 
     def __init__(

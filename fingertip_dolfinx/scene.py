@@ -43,14 +43,33 @@ TABLES = ("name", "description", "section", "spacing", "indenters", "materials",
 
 @dataclass(frozen=True)
 class Outputs:
-    """What a run writes besides its history: profiles and pictures at `times` (s), along
-    curves at `depths` (mm below the undeformed outer surface) over |x| <= profile_half_width,
-    sampled at `profile_points`; fields for ParaView (`fields`: at the output `times`, or
-    "every-step": every `field_every` steps and at the output times; a `field_every` above 1
-    alone means "every-step"); `pictures = false` skips the PNG figures (a sweep of many runs
-    may want only the numbers); `receptors` names a receptor set (`"default"` or a path,
-    `data/receptors/`) whose sites are sampled at every step into receptors.csv ("" or false:
-    none)."""
+    """What a run writes besides its history (a scene's ``[output]`` table).
+
+    Parameters
+    ----------
+    times : tuple of float, optional
+        Output times (s) of the profiles, field arrays and pictures; () means the protocol's end.
+    depths : tuple of float, optional
+        Depths (mm below the undeformed outer surface) of the depth curves.
+    profile_half_width : float, optional
+        The profiles cover |x| <= this (mm).
+    profile_points : int, optional
+        Points sampled along each profile.
+    field_every : int, optional
+        With ``fields = "every-step"``: write the fields every this many steps (and at the output
+        times). Above 1 alone it means ``"every-step"``.
+    pictures : bool, optional
+        False skips the PNG figures (a sweep of many runs may want only the numbers).
+    receptors : str, optional
+        A receptor set (``"default"`` or a path, ``data/receptors/``) whose sites are sampled at
+        every step into receptors.csv; ``""`` (or false): none.
+    section_z : float or None, optional
+        3D only: z (mm) of the cross-section where the profiles are read; None: the probe's z or
+        the middle of the cylinder.
+    fields : str or None, optional
+        When the fields for ParaView are written: ``"output-times"`` (the default) or
+        ``"every-step"``.
+    """
 
     #: Output times (s): profiles, field arrays and pictures (default: the protocol's end).
     times: tuple[float, ...] = ()
@@ -136,8 +155,46 @@ class Accuracy:
 
 @dataclass
 class Scene:
-    """One experiment: everything a run needs, validated. Defaults: the paper's materials
-    (`wu2004`), the default model and step options, outputs at the protocol's end."""
+    """One experiment: everything a run needs, validated on construction.
+
+    Built by `load_scene` from a scene file, or from parts in Python. Defaults: the paper's
+    materials (``wu2004``), the default model and step options, outputs at the protocol's end.
+
+    Parameters
+    ----------
+    section : Section or Fingertip3D
+        A 2D cross-section (plane strain) or a 3D fingertip, with its mesh options.
+    indenters : list of Indenter
+        The rigid indenters, moving together along `history`.
+    history : LoadHistory
+        The protocol: indentation d(t) in mm after first touch (`RampHold`, `PiecewiseLinear`,
+        `Sinusoid`, `Vibration`).
+    materials : Tissues, optional
+        The materials of the four regions.
+    model : ModelOptions, optional
+        Modelling and discretisation choices (``[model]``).
+    steps : StepOptions, optional
+        Time stepping (``[steps]``).
+    petsc_options : dict, optional
+        PETSc options of the Newton solver (``[solver]``).
+    outputs : Outputs, optional
+        What is written besides the history (``[output]``).
+    name, description : str, optional
+        The scene's name (file name) and one line saying what it is.
+    accuracy : Accuracy, optional
+        ``[accuracy]``: the tolerance of the adaptive loop, if asked for.
+    harmonic : HarmonicOptions or None, optional
+        ``[harmonic]``: the frequency route's frequencies and pressed state; None: none.
+    linear : str, optional
+        The linear solver inside Newton: ``"direct"`` (MUMPS) or ``"iterative"``.
+    changes : tuple of str, optional
+        The overrides applied to the scene file, as given (the figures' titles name them).
+
+    Raises
+    ------
+    InputError
+        If a part is missing or inconsistent (no indenter, a protocol that never presses, ...).
+    """
 
     section: Section | Fingertip3D  # a 2D section (plane strain) or a 3D fingertip
     indenters: list[Indenter]
@@ -409,9 +466,31 @@ def _holders(node, keys: tuple):
 
 def load_scene(source: str | Path, overrides: Mapping | Sequence[str] = (),
                spacing: float | None = None) -> Scene:
-    """Read a scene file (built-in name or path), apply overrides (`key=value` strings or a
-    nested mapping of tables), and validate everything. An error names where the bad value
-    came from: the scene file, `--set`, `--config FILE` or the Python override."""
+    """Read a scene file, apply overrides and validate everything.
+
+    Parameters
+    ----------
+    source : str or Path
+        A built-in scene's name (``"1pt"``, ``"line-load"``, ...) or a scene TOML file. Relative
+        paths inside a file are read from its folder.
+    overrides : mapping or sequence of str, optional
+        A nested mapping of tables (``{"model": {"subcutaneous": "drained"}}``) or ``key=value``
+        strings (``["protocol.depth=0.5"]``), merged key by key; a list given whole replaces
+        the scene's list.
+    spacing : float or None, optional
+        Centre spacing (mm) of a two-indenter scene (the two-point test); None: the file's.
+
+    Returns
+    -------
+    Scene
+        The validated scene.
+
+    Raises
+    ------
+    InputError
+        For any bad value; the message names where it came from (the scene file, a file it
+        names, ``--set``, ``--config FILE`` or the Python override), the key and the fix.
+    """
     path = scene_path(source)
     data = anchor_paths(read_toml(path), path.parent)
     sources = {leaf: str(path) for leaf in _leaves(data)}

@@ -43,14 +43,36 @@ DEFAULT_SET = "wu2004"
 
 @dataclass(frozen=True)
 class Rigid:
-    """A region held rigidly in place (bone, nail): its nodes are clamped, it has no law."""
+    """A region held rigidly in place (bone or nail): its nodes are clamped, it has no law.
+
+    Parameters
+    ----------
+    where : str, optional
+        Where the choice came from, for messages.
+    """
 
     where: str = "rigid"
 
 
 @dataclass(frozen=True)
 class Tissues:
-    """The materials of the four regions."""
+    """The materials of the four regions (one materials set, e.g. ``wu2004``).
+
+    Parameters
+    ----------
+    skin : Hyperfoam
+        The skin's elastic law.
+    skin_prony : Prony or None
+        The skin's relaxation (quasi-linear viscoelasticity); None: elastic skin.
+    subcutaneous : Biphasic
+        The subcutaneous tissue: a hyperfoam solid, an inviscid fluid and a permeability law.
+    bone, nail : LinearElastic or Rigid
+        The distal phalanx and the nail.
+    name : str, optional
+        The set's name (its file name).
+    density : mapping of str to float, optional
+        Mass density (N·s²/mm⁴; 1000 kg/m³ is 1e-9) by region; only dynamic runs read it.
+    """
 
     skin: Hyperfoam
     skin_prony: Prony | None
@@ -99,8 +121,26 @@ class Tissues:
 
 
 def load_materials(source: str | Path = DEFAULT_SET, overrides: Mapping | None = None) -> Tissues:
-    """A materials set by built-in name (`wu2004`) or path, with `overrides` (same tables)
-    merged over it."""
+    """Read a materials set, with overrides merged over it.
+
+    Parameters
+    ----------
+    source : str or Path, optional
+        A built-in set's name (``"wu2004"``, ``"fast-relaxation"``) or a materials TOML file.
+    overrides : mapping or None, optional
+        Tables of the same form (``{"subcutaneous": {"permeability": {"k0": 1e-2}}}``), merged
+        key by key.
+
+    Returns
+    -------
+    Tissues
+        The validated materials.
+
+    Raises
+    ------
+    InputError
+        For a missing file, an unknown key or an impossible value (named with its file and table).
+    """
     path = find("materials", source, "materials set")
     data = merge(read_toml(path), overrides or {})
     data.setdefault("name", path.stem)

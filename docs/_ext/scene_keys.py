@@ -106,10 +106,20 @@ def _cell(text: str) -> str:
     return text.replace("|", "\\|").replace("\n", " ")
 
 
+def _intro(doc: str) -> str:
+    """A docstring up to its first numpy section (``Parameters`` over a line of dashes): the
+    table below lists the keys, so the section would say it twice."""
+    lines = doc.splitlines()
+    for i in range(len(lines) - 1):
+        if lines[i].strip() and set(lines[i + 1].strip()) == {"-"}:
+            return "\n".join(lines[:i]).strip()
+    return doc
+
+
 def render() -> str:
     out = []
     for table, cls, note in tables():
-        doc = inspect.getdoc(cls) or ""
+        doc = _intro(inspect.getdoc(cls) or "")
         comments = field_comments(cls)
         out += [f"## `{table}`", "", f"Read into `{cls.__module__}.{cls.__qualname__}`.", ""]
         if doc:
