@@ -187,7 +187,18 @@ class Sites:
 
 @dataclass(frozen=True)
 class ReceptorPopulation:
-    """Receptor classes and the half-width of the pulp their rows cover."""
+    """Receptor classes and the half-width of the pulp their rows cover (a receptor set).
+
+    Parameters
+    ----------
+    classes : tuple of ReceptorClass
+        Each class (SA1, RA, PC): its depth, innervation density, stimulus quantity and models.
+        ``population["RA"]`` gives one by name.
+    half_width : float
+        The rows of sites cover |x| <= this (mm) on the pulp.
+    name, description : str, optional
+        The set's name (its file name) and one line saying what it is.
+    """
 
     classes: tuple[ReceptorClass, ...]
     half_width: float
@@ -263,8 +274,25 @@ def row_abscissae(outer, spacing: float, half_width: float) -> np.ndarray:
 
 def load_receptors(source: str | Path = DEFAULT_SET,
                    overrides: Mapping | None = None) -> ReceptorPopulation:
-    """A receptor set by built-in name (`default`) or path, with `overrides` (same tables)
-    merged over it."""
+    """Read a receptor set, with overrides merged over it.
+
+    Parameters
+    ----------
+    source : str or Path, optional
+        A built-in set's name (``"default"``) or a receptor TOML file.
+    overrides : mapping or None, optional
+        Tables of the same form, merged key by key.
+
+    Returns
+    -------
+    ReceptorPopulation
+        The validated receptor set.
+
+    Raises
+    ------
+    InputError
+        For a missing file, an unknown key or an impossible value.
+    """
     from .tissues import merge
 
     path = find("receptors", source, "receptor set")
@@ -466,12 +494,31 @@ class AfferentResponses:
 
 def afferent_responses(result, population: ReceptorPopulation | str | None = None, *,
                        hold: str = "linear") -> AfferentResponses:
-    """Rates and spike trains of every receptor of a run written with `output.receptors`.
+    """Rates and spike trains of every receptor of a run written with ``output.receptors``.
 
-    `result`: a `Result` (or its directory); `population`: the receptor set (a
-    ReceptorPopulation or a set's name or path; by default the one the run sampled, as
-    recorded in its receptors.json) whose models are applied. The samples start at rest
-    (zero stimulus at t = 0).
+    The samples start at rest (zero stimulus at t = 0).
+
+    Parameters
+    ----------
+    result : Result or str or Path
+        A run's `Result`, or its directory.
+    population : ReceptorPopulation or str or None, optional
+        The receptor set whose models are applied (a set, or a set's name or path); None: the
+        one the run sampled, as recorded in its receptors.json.
+    hold : str, optional
+        How the neuron's input current varies over a step: ``"linear"`` (between its values at
+        the step's ends) or ``"constant"`` (held at its end value).
+
+    Returns
+    -------
+    AfferentResponses
+        Per receptor and sample time: the stimulus, the integrate-and-fire rate and spike times,
+        and the SED-rate model's rate (classes with a gain).
+
+    Raises
+    ------
+    InputError
+        If the run wrote no receptors.csv.
     """
     if not hasattr(result, "receptors"):
         from .result import Result
