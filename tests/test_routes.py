@@ -161,3 +161,24 @@ def test_api_and_command_line_write_the_same_numbers(both):
         for name in cli.files:
             np.testing.assert_array_equal(fields[name], cli[name], err_msg=name)
     assert result.force[-1] > 0 and math.isfinite(result.force[-1])
+
+
+@pytest.mark.slow
+def test_a_harmonic_scene_gives_the_same_frequency_response_from_both(tmp_path_factory):
+    """vibrotactile with a [harmonic] table (no --frequencies: the protocol's 250 Hz), coarse:
+    ft.run takes the frequency route and writes what `fingertip run` writes, number for
+    number (a minute each on a shared machine)."""
+    out = MPI.COMM_WORLD.bcast(tmp_path_factory.mktemp("harmonic"), root=0)
+    sets = [*SETS[:3], *HARMONIC, "harmonic.frequencies=[10.0, 100.0]"]
+    assert _cli("vibrotactile", out / "cli", sets) == 0
+    result = ft.run("vibrotactile", out / "api", overrides=sets, progress=False)
+    assert isinstance(result, ft.FrequencyResult) and result.route == "frequency"
+    for name in ("frequency_response.csv", "receptor_transfer.csv", "thresholds.csv"):
+        cli, api = (list(csv.DictReader((out / d / name).open())) for d in ("cli", "api"))
+        assert len(api) == len(cli) > 0
+        for a, c in zip(api, cli):
+            a.pop("solve_s", None), c.pop("solve_s", None)  # timings
+            assert a == c, name
+    np.testing.assert_array_equal(result.frequencies, [10.0, 100.0])
+    omega = 2 * np.pi * result.frequencies  # Z = K/(iω), from the table's own columns
+    np.testing.assert_allclose(result.impedance, result.stiffness / (1j * omega), rtol=1e-9)
