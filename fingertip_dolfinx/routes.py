@@ -60,6 +60,8 @@ def run(scene: Scene | str | Path, out: str | Path, *,
     scene : a `Scene`, or a built-in scene's name or a scene file (loaded with `overrides`
         and `spacing`, as `load_scene` does; `fidelity="auto"` needs this form).
     out : the output directory.
+    overrides, spacing : applied to the scene file (`key=value` strings or nested tables;
+        a 2pt scene's bar spacing, mm), as `fingertip run`'s --set, --config and --spacing.
     tol : relative error asked of every key output: the adaptive loop (with
         `fidelity="auto"`: the model's tolerance instead, default `AUTO_FIDELITY_TOL`).
     max_levels : most mesh levels of the adaptive loop (default: the scene's `[accuracy]`).
@@ -70,6 +72,7 @@ def run(scene: Scene | str | Path, out: str | Path, *,
         list) and pressed state ("held" or "relaxed"), over the scene's `[harmonic]`.
     resume : continue an interrupted time run in `out`.
     progress : show progress bars (and `say` prints its sentences).
+    comm : the ranks that run it (default: all of MPI.COMM_WORLD).
     say : where the route's sentences go (which model `fidelity="auto"` picked, the
         adaptive loop's verdict); default: printed by rank 0 to stderr when `progress`.
 
