@@ -40,8 +40,8 @@ __version__ = "0.1.0"
 _API = {
     # scenes: experiments as data, and running them
     "Scene": "scene", "Outputs": "scene", "load_scene": "scene",
-    "run": "runner", "run_scene": "runner", "check": "checks",
-    "Result": "result", "load_result": "result",
+    "run": "routes", "route_of": "routes", "run_scene": "runner", "check": "checks",
+    "Result": "result", "FrequencyResult": "result", "load_result": "result",
     "adapt": "adaptivity", "AdaptOptions": "adaptivity",
     # materials as data
     "Tissues": "tissues", "Rigid": "tissues", "load_materials": "tissues", "WU2004": "tissues",

@@ -16,6 +16,7 @@ from pathlib import Path
 
 from .datafiles import builtin_names
 from .errors import FingertipError, InputError, RunInterrupted
+from .routes import AUTO_FIDELITY_TOL, FIDELITY_COARSE
 
 #: The built-in scenes, as the help lists them (the package's data/scenes/).
 SCENES = ", ".join(builtin_names("scenes"))
@@ -210,14 +211,6 @@ def _run_study(args) -> int:
     return 0
 
 
-#: --fidelity auto's tolerance when --tol is not given.
-AUTO_FIDELITY_TOL = 0.05
-
-#: The coarse settings the studies use unless --full: a mesh 2x coarser than the scenes'.
-FIDELITY_COARSE = ("section.mesh.min_size=0.2", "section.mesh.max_size=1.0",
-                   "section.mesh.bone_size=2.0")
-
-
 def _scene_overrides(args) -> list[str]:
     """--config FILE's keys as KEY=VALUE overrides (its relative paths read from its folder),
     followed by the --set ones; each names its source (`--config FILE`, `--set KEY=VALUE`) in
@@ -294,50 +287,39 @@ def _print_check(args, overrides: list[str], spacing: float | None) -> int:
 
 
 def _run_scene(args) -> int:
-    from .scene import load_scene
-
-    overrides = _scene_overrides(args)
-    mesh_tol = None
-    if args.fidelity == "auto":
-        tol = AUTO_FIDELITY_TOL if args.tol is None else args.tol
-        overrides += _auto_fidelity(args, overrides, tol)
-    else:
-        mesh_tol = args.tol
-    scene = load_scene(args.scene, overrides, spacing=args.spacing)
-    if args.frequencies is not None or args.state is not None or scene.harmonic is not None:
-        return _run_frequency_route(args, scene)
-    if mesh_tol is None:
-        mesh_tol = scene.accuracy.tol
-    if mesh_tol is not None or args.max_levels is not None:
-        return _run_adaptive(args, scene, mesh_tol)
-    return _run_once(args, scene)
-
-
-def _run_once(args, scene) -> int:
-    """One run of `scene` into --out (or its --resume); a signal stops it with exit 130."""
+    """`fingertip run`: the scene by its route (routes.py, as `ft.run`), then one line."""
     from mpi4py import MPI
 
-    from .runner import completed_summary, run_scene
+    from .routes import run
 
-    if args.resume and completed_summary(scene, args.out, MPI.COMM_WORLD) is not None:
-        _rank0_print(f"{scene.name}: the run in {args.out} is already complete (to t = "
-                     f"{scene.history.end_time:g} s); nothing computed, nothing rewritten.")
-        return 0
     try:
-        summary = run_scene(scene, args.out, resume=args.resume, progress=not args.quiet)
+        result = run(args.scene, args.out, overrides=_scene_overrides(args), spacing=args.spacing,
+                     tol=args.tol, max_levels=args.max_levels, fidelity=args.fidelity,
+                     fidelity_table=args.fidelity_table, frequencies=args.frequencies,
+                     state=args.state, resume=args.resume, progress=not args.quiet,
+                     say=_rank0_print)
     except RunInterrupted as stop:
+        if getattr(stop, "route", None) != "time":
+            raise
         _rank0_print(f"interrupted at t = {stop.time:.6g} s; continue with: "
                      f"{_resume_command(args.argv, MPI.COMM_WORLD.size)}")
         return 130
+    {"time": _print_run, "adaptive": _print_adaptive,
+     "frequency": _print_frequency}[result.route](result)
+    return 0
+
+
+def _print_run(result) -> None:
+    summary = result.summary
     peak = (f"{summary['peak_force_N']:.4g} N" + (" (half model: x2 for the whole finger)"
                                                    if summary["mirror_factor"] == 2 else "")
             if "peak_force_N" in summary else f"{summary['peak_force_N_per_mm']:.4g} N/mm")
     _rank0_print(
-        f"{scene.name}: {summary['time_steps']} steps, {summary['newton_iterations']} Newton "
-        f"iterations, {summary['wall_time_s']:.1f} s; peak force {peak}, max penetration "
-        f"{1e3 * summary['max_penetration_mm']:.3g} µm; results in {args.out}"
+        f"{summary['scene']}: {summary['time_steps']} steps, "
+        f"{summary['newton_iterations']} Newton iterations, {summary['wall_time_s']:.1f} s; "
+        f"peak force {peak}, max penetration {1e3 * summary['max_penetration_mm']:.3g} µm; "
+        f"results in {result.out}"
     )
-    return 0
 
 
 def _resume_command(argv: list[str], ranks: int) -> str:
@@ -349,84 +331,27 @@ def _resume_command(argv: list[str], ranks: int) -> str:
     return f"{launch}fingertip {shlex.join([*argv, *resume])}"
 
 
-def _run_frequency_route(args, scene) -> int:
-    """`run --frequencies`: the small-signal frequency response (frequency_response.py)."""
-    from .frequency_response import run_frequency_response
-
-    for flag, given in (("--resume", args.resume), ("--tol", args.tol is not None),
-                        ("--fidelity auto", args.fidelity == "auto")):
-        if given:
-            raise InputError(flag, "is not available on the frequency route.",
-                             f"drop {flag} (or --frequencies).")
-    summary = run_frequency_response(scene, args.out, frequencies=args.frequencies,
-                                     state=args.state, progress=not args.quiet)
+def _print_frequency(result) -> None:
+    summary = result.summary
     # only the peaks the grid resolves are named; the others as bands to refine
     peaks = ", ".join(f"{f:.3g}" for f in summary["resonances_Hz"]["probe_held"]) or "none"
     warning = summary["resonance_warning"]
     _rank0_print(
-        f"{scene.name}: {summary['dofs']} dofs, {len(summary['harmonic']['frequencies_Hz'])} "
-        f"frequencies in {summary['wall_time_s']:.1f} s (pressed state "
+        f"{summary['scene']['name']}: {summary['dofs']} dofs, "
+        f"{len(summary['harmonic']['frequencies_Hz'])} frequencies in "
+        f"{summary['wall_time_s']:.1f} s (pressed state "
         f"{summary['pressed_state']['wall_time_s']:.1f} s); resonances resolved (|K| maxima, "
         f"probe held): {peaks}{' Hz' if peaks != 'none' else ''}"
-        f"{'; ' + warning if warning else ''}; results in {args.out}")
-    return 0
+        f"{'; ' + warning if warning else ''}; results in {result.out}")
 
 
-def _run_adaptive(args, scene, tol) -> int:
-    """`run --tol`: the adaptive mesh loop (adaptivity.py) into DIR."""
-    import dataclasses as dc
+def _print_adaptive(result) -> None:
+    from .adaptivity import read_adapt
 
-    from .adaptivity import AdaptOptions, adapt
-
-    if tol is None:
-        raise InputError("--max-levels", "is for the adaptive loop.",
-                         "give --tol too (or [accuracy] tol in the scene).")
-    if not 0 < tol < 1:
-        raise InputError(f"--tol {tol}", "must be a relative error in (0, 1).",
-                         "give e.g. --tol 0.01 for 1 %.")
-    if args.max_levels is not None and args.max_levels < 2:
-        raise InputError(f"--max-levels {args.max_levels}", "an error estimate needs two "
-                         "levels.", "give 2 or more.")
-    if args.resume:
-        raise InputError("--resume", "cannot continue the adaptive loop (--tol or the scene's "
-                         "[accuracy] tol).", "run it again into a new directory.")
-    levels = scene.accuracy.max_levels if args.max_levels is None else args.max_levels
-    options = AdaptOptions(tol=tol, max_levels=levels)
-    scene = dc.replace(scene, accuracy=dc.replace(scene.accuracy, tol=tol, max_levels=levels))
-    report = adapt(scene, args.out, options, progress=not args.quiet)
-    _rank0_print(report["message"])
-    cost = report["cost"]
+    cost = read_adapt(result.out)["cost"]
     _rank0_print(f"{cost['levels']} levels, {cost['wall_time_s']:.1f} s of time stepping "
-                 f"({cost['elapsed_s']:.1f} s in all); the finest level's results in {args.out}, "
-                 f"the loop in {args.out}/adapt.json")
-    return 0
-
-
-def _auto_fidelity(args, overrides: list[str], tol: float) -> list[str]:
-    """The settings of the cheapest adequate model; says which it picked and why."""
-    from .studies.fidelity import pick, read_table, run_fidelity_study, settings_of
-
-    if not tol > 0:
-        raise InputError("--tol", f"must be positive, got {tol}.")
-    if args.fidelity_table is not None:
-        if not args.fidelity_table.is_file():
-            raise InputError(f"--fidelity-table {args.fidelity_table}", "no such file.",
-                             "run `fingertip study fidelity` first, or leave it out.")
-        rows = read_table(args.fidelity_table)
-        source = str(args.fidelity_table)
-    else:
-        _rank0_print("--fidelity auto: running the fidelity ladder on a coarse mesh first")
-        rows = run_fidelity_study(args.scene, args.out / "fidelity",
-                                  list(FIDELITY_COARSE) + overrides, progress=not args.quiet)
-        source = f"{args.out}/fidelity/fidelity.csv"
-    try:
-        model, why = pick(rows, tol)
-    except StopIteration:
-        raise InputError("--tol", f"no model of the ladder is within {tol:.2%} of the full "
-                         "model (not even the full one with rigid bone).",
-                         "raise --tol or use --fidelity scene.") from None
-    _rank0_print(f"--fidelity auto picked '{model}': {why} (from {source})")
-    return settings_of(model)
+                 f"({cost['elapsed_s']:.1f} s in all); the finest level's results in "
+                 f"{result.out}, the loop in {result.out}/adapt.json")
 
 
 def _run_sweep(args) -> int:

@@ -217,7 +217,29 @@ def run_frequency_response(scene: Scene, out: str | Path, *, frequencies=None,
     pressed_sites = record_pressed_sites(problem, population, scene, out, comm, pressed.time)
     solver = HarmonicSolver(linearise(problem))
     sites = population.sites(scene.section.outer)
-    transfer = SiteTransfer(problem, sites.points)
+    try:
+        rows, site_rows, transfers = _sweep(solver, SiteTransfer(problem, sites.points), sites,
+                                            freqs, out, comm, show)
+    finally:
+        solver.close()
+    curves = None
+    if comm.rank == 0:
+        curves = afferent_thresholds(population, sites, freqs, transfers, pressed_sites,
+                                     out / "thresholds.csv")
+        show(f"thresholds of {len(sites)} sites at {len(freqs)} frequencies: thresholds.csv")
+    summary = _summary(scene, fm, dofs, pressed, solver, rows, options, comm,
+                       wallclock.perf_counter() - started)
+    write_json(out / "summary.json", summary, comm)
+    if comm.rank == 0 and scene.outputs.pictures:
+        _figures(rows, site_rows, curves, population, scene, options, pressing, summary, out)
+    comm.barrier()  # every file is written when any rank returns (rank 0 draws)
+    return summary
+
+
+def _sweep(solver, transfer, sites, freqs, out: Path, comm, show) -> tuple[list, list, list]:
+    """One solve per frequency, each written as it comes: a row of frequency_response.csv and
+    the sites' rows of receptor_transfer.csv. Returns (response rows, site rows, the transfer
+    functions per frequency)."""
     response_log = CsvLog(out / "frequency_response.csv", RESPONSE_COLUMNS, comm)
     transfer_log = CsvLog(out / "receptor_transfer.csv", TRANSFER_COLUMNS, comm)
     rows, site_rows, transfers = [], [], []
@@ -234,23 +256,17 @@ def run_frequency_response(scene: Scene, out: str | Path, *, frequencies=None,
     finally:
         response_log.close()
         transfer_log.close()
-        solver.close()
-    curves = None
-    if comm.rank == 0:
-        curves = afferent_thresholds(population, sites, freqs, transfers, pressed_sites,
-                                     out / "thresholds.csv")
-        show(f"thresholds of {len(sites)} sites at {len(freqs)} frequencies: thresholds.csv")
-    summary = _summary(scene, fm, dofs, pressed, solver, rows, options, comm,
-                       wallclock.perf_counter() - started)
-    write_json(out / "summary.json", summary, comm)
-    if comm.rank == 0 and scene.outputs.pictures:
-        plot_impedance(rows, out / "impedance.png", scene.name)
-        plot_receptor_transfer(site_rows, out, population, scene.name)
-        plot_threshold_curves(curves, out / "thresholds.png", title=(
-            f"{scene.name}, {options.state} at {pressing.depth:g} mm: most sensitive site"),
-            note=summary["resonance_warning"])
-    comm.barrier()  # every file is written when any rank returns (rank 0 draws)
-    return summary
+    return rows, site_rows, transfers
+
+
+def _figures(rows, site_rows, curves, population, scene, options, pressing, summary,
+             out: Path) -> None:
+    """impedance.png, receptor_transfer_<class>.png and thresholds.png (rank 0)."""
+    plot_impedance(rows, out / "impedance.png", scene.name)
+    plot_receptor_transfer(site_rows, out, population, scene.name)
+    plot_threshold_curves(curves, out / "thresholds.png", title=(
+        f"{scene.name}, {options.state} at {pressing.depth:g} mm: most sensitive site"),
+        note=summary["resonance_warning"])
 
 
 def small_signal_response(scene: Scene, frequencies, state: str = "held",

@@ -1,14 +1,17 @@
-"""The results of a run as arrays: what `run_scene` returns and `load_result(DIR)` reads back.
+"""The results of a run as arrays: what `ft.run` returns and `load_result(DIR)` reads back.
 
-A `Result` reads the run's own files (summary.json, history.csv, surface_profile.csv,
+A `Result` reads a time run's own files (summary.json, history.csv, surface_profile.csv,
 depth_profiles.csv, fields_t<t>s.npz), so a finished, failed or resumed run, or one made on
-another machine, is read the same way; nothing needs CSV parsing by hand.
+another machine, is read the same way; nothing needs CSV parsing by hand. A
+`FrequencyResult` reads the frequency route's (frequency_response.csv, receptor_transfer.csv,
+thresholds.csv, receptors.csv, summary.json).
 """
 
 from __future__ import annotations
 
 import csv
 import json
+import math
 from functools import cached_property
 from pathlib import Path
 
@@ -26,8 +29,11 @@ class Result:
     - `surface`, `depth`: the profiles at the output times, columns as arrays;
     - `fields(t)`: the fields at output time t as arrays (see `post.FieldArrays`);
     - `receptors()`: the receptor sites' samples per step (receptors.csv), if the run wrote them;
-    - shortcuts `time`, `force`, `surface_profile(t)`, `depth_profile(quantity, depth, t)`.
+    - shortcuts `time`, `force`, `surface_profile(t)`, `depth_profile(quantity, depth, t)`;
+    - `route`: "time" or "adaptive" when `ft.run` returned it (None when read back).
     """
+
+    route: str | None = None
 
     def __init__(self, out: str | Path):
         self.out = Path(out)
@@ -104,17 +110,158 @@ class Result:
         return _read_table(path, text=("class",), integer=("index",))
 
     def fields(self, t: float) -> dict[str, np.ndarray]:
-        """The fields at output time t, cell by cell (X, u, region, sed, log_strain, ...)."""
-        path = self.out / f"fields_t{t:g}s.npz"
-        if not path.exists():
-            raise InputError(f"fields at t = {t:g} s", f"were not written ({path}).",
-                             f"output times of this run: {self.output_times}.")
+        """The fields at output time t, cell by cell (see `post.FieldArrays`): the corners'
+        reference coordinates `X` and displacement `u` (cells, corners, gdim; mm), the cell's
+        `region` tag, at the corners `sed` (MPa), `log_strain` (gdim² components) and
+        `principal` (the principal log strains, largest first); with a pore pressure, the
+        subcutaneous cells' corners `X_p`, `u_p` and `p` (MPa)."""
+        path = self._fields_path(t)
         with np.load(path) as data:
             return {k: data[k] for k in data.files}
 
+    def _fields_path(self, t: float) -> Path:
+        """fields_t<t>s.npz of the output time t; InputError if t is not one or the run
+        stored no field arrays."""
+        times = self.output_times
+        at = [s for s in times if math.isclose(s, t, rel_tol=1e-9, abs_tol=1e-12)]
+        if not at:
+            raise InputError(f"t = {t:g} s", "is not an output time of this run.",
+                             f"use one of its output times, {times} s (or run again with "
+                             f"output.times including {t:g}).")
+        path = self.out / f"fields_t{at[0]:g}s.npz"
+        if not path.exists():
+            raise InputError(f"fields at t = {t:g} s", f"this run stored no field arrays "
+                             f"({path.name} is missing).", "open its fields (*.bp, mesh.xdmf) "
+                             "in ParaView, or run the scene again to write them.")
+        return path
 
-def load_result(out: str | Path) -> Result:
-    """The results of the run written into `out`."""
+    def to_pyvista(self, t: float, warp: bool | float = False):
+        """The fields at output time t as a pyvista `UnstructuredGrid` on the mesh's nodes
+        (triangles, quadrilaterals or tetrahedra; 2D points get z = 0).
+
+        Point data: `displacement` (mm, 3 components), with a pore pressure `pore_pressure`
+        (MPa; NaN outside the subcutaneous tissue, where there is none). Cell data: `region`
+        (the tag: skin 1, subcutaneous 2, bone 3, nail 4) and the cell means of the
+        discontinuous fields `strain_energy_density` (MPa), `log_strain` (the Hencky strain,
+        gdim² components, row by row) and `principal_log_strain` (largest first);
+        `grid.cell_data_to_point_data()` smooths them onto the nodes. `warp`: the points at
+        the deformed positions X + u (True) or X + warp·u (a number: magnified); default the
+        reference positions.
+        """
+        import pyvista as pv
+
+        f = self.fields(t)
+        cells, corners, gdim = f["X"].shape
+        nodes, inverse = np.unique(f["X"].reshape(-1, gdim), axis=0, return_inverse=True)
+        connectivity = inverse.reshape(cells, corners)
+        u = np.zeros_like(nodes)
+        u[connectivity] = f["u"]  # the same at a node shared by cells (continuous)
+        points = nodes + float(warp) * u
+        kind, order = _VTK_CELLS[corners, gdim]
+        grid = pv.UnstructuredGrid(
+            np.hstack([np.full((cells, 1), corners), connectivity[:, order]]).ravel(),
+            np.full(cells, kind, dtype=np.uint8), _in_3d(points))
+        grid.point_data["displacement"] = _in_3d(u)
+        if "p" in f:
+            grid.point_data["pore_pressure"] = _on_nodes(nodes, f["X_p"], f["p"])
+        grid.cell_data["region"] = f["region"]
+        grid.cell_data["strain_energy_density"] = f["sed"].mean(axis=1)[:, 0]
+        grid.cell_data["log_strain"] = f["log_strain"].mean(axis=1)
+        grid.cell_data["principal_log_strain"] = f["principal"].mean(axis=1)
+        return grid
+
+
+#: (corners, gdim) -> (VTK cell type, VTK order of the basix corners). Basix numbers a
+#: quadrilateral's corners in tensor order (0, 1 on the first edge, 2, 3 opposite), VTK
+#: counter-clockwise.
+_VTK_CELLS = {(3, 2): (5, [0, 1, 2]), (4, 2): (9, [0, 1, 3, 2]), (4, 3): (10, [0, 1, 2, 3])}
+
+
+def _in_3d(x: np.ndarray) -> np.ndarray:
+    """Points or vectors with 3 components (2D ones get z = 0), as VTK wants them."""
+    return np.hstack([x, np.zeros((len(x), 3 - x.shape[1]))]) if x.shape[1] < 3 else x
+
+
+def _on_nodes(nodes: np.ndarray, X: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Corner values (cells, corners) of a continuous field on a submesh, at the mesh's
+    `nodes` (np.unique-sorted); NaN at the nodes the submesh does not hold."""
+    corners = X.reshape(-1, nodes.shape[1])
+    merged, inverse = np.unique(np.concatenate([nodes, corners]), axis=0, return_inverse=True)
+    if len(merged) != len(nodes):
+        raise ValueError("the submesh's corners are not nodes of the mesh")
+    out = np.full(len(nodes), np.nan)
+    out[inverse.ravel()[len(nodes):]] = values.ravel()
+    return out
+
+
+class FrequencyResult:
+    """The frequency route's results in `out` (frequency_response.py), as arrays.
+
+    - `summary`: summary.json as a dict (scene, pressed state, mesh, dofs, resonances, ...);
+    - `response`: frequency_response.csv, columns as arrays (`frequency_Hz`,
+      `K_abs_N_per_mm2`, `K_phase_deg`, `Z_abs_Ns_per_mm2`, `Z_phase_deg`, ...);
+    - `frequencies` (Hz), `stiffness` K(ω) = δf/δd (N/mm per mm, complex) and `impedance`
+      Z(ω) = δf/(iω δd) (N·s/mm per mm, complex) at them;
+    - `transfer`: receptor_transfer.csv, per frequency and receptor site the amplitude per µm
+      of drive and phase of each stimulus quantity (`class` strings, `index` integers);
+    - `thresholds`: thresholds.csv, per class, site and frequency the afferent thresholds
+      `I0_um` (absolute) and `I1_um` (1:1 entrainment) in µm of probe displacement;
+    - `pressed`: receptors.csv, the stimulus quantities at the sites in the pressed state.
+    """
+
+    route = "frequency"
+
+    def __init__(self, out: str | Path):
+        self.out = Path(out)
+        if not (self.out / "frequency_response.csv").exists():
+            raise InputError(str(self.out), "holds no frequency response (no "
+                             "frequency_response.csv).", "give the --out directory of a run "
+                             "on the frequency route (--frequencies or a [harmonic] table).")
+
+    def __repr__(self) -> str:
+        return (f"FrequencyResult({str(self.out)!r}: {self.summary['scene']['name']}, "
+                f"{len(self.frequencies)} frequencies, {self.summary['dofs']} dofs)")
+
+    @cached_property
+    def summary(self) -> dict:
+        return json.loads((self.out / "summary.json").read_text())
+
+    @cached_property
+    def response(self) -> dict[str, np.ndarray]:
+        return read_csv(self.out / "frequency_response.csv")
+
+    @property
+    def frequencies(self) -> np.ndarray:
+        return self.response["frequency_Hz"]
+
+    @property
+    def stiffness(self) -> np.ndarray:
+        return self.response["K_real"] + 1j * self.response["K_imag"]
+
+    @property
+    def impedance(self) -> np.ndarray:
+        r = self.response
+        return r["Z_abs_Ns_per_mm2"] * np.exp(1j * np.radians(r["Z_phase_deg"]))
+
+    @cached_property
+    def transfer(self) -> dict[str, np.ndarray]:
+        return _read_table(self.out / "receptor_transfer.csv", ("class",), ("index",))
+
+    @cached_property
+    def thresholds(self) -> dict[str, np.ndarray]:
+        return _read_table(self.out / "thresholds.csv", ("class",), ("index",))
+
+    @cached_property
+    def pressed(self) -> dict[str, np.ndarray]:
+        return _read_table(self.out / "receptors.csv", ("class",), ("index",))
+
+
+def load_result(out: str | Path) -> Result | FrequencyResult:
+    """The results of the run written into `out`: a `FrequencyResult` for the frequency
+    route's files, else a `Result`."""
+    out = Path(out)
+    if (out / "frequency_response.csv").exists() and not (out / "history.csv").exists():
+        return FrequencyResult(out)
     return Result(out)
 
 

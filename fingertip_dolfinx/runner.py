@@ -3,7 +3,8 @@
 Per accepted step: a row of history.csv, a checkpoint (one .npz per rank) from which
 `--resume` continues, and with `output.fields = "every-step"` the fields for ParaView (VTX,
 every `field_every` steps). At output times: the fields for ParaView, the pulp-surface
-deflection, the depth profiles, the fields as arrays (`fields_t<t>s.npz`) and their pictures.
+deflection, the depth profiles, the fields as arrays (`fields_t<t>s.npz`, 2D and 3D: what
+`Result.fields` and `Result.to_pyvista` read) and, in 2D, their pictures.
 At the end (or at a failure, or an interruption): summary.json and the figures. `run`
 returns a `Result` (result.py) that holds all of it as arrays. With `output.receptors`, every
 step also adds the receptor sites' rows to receptors.csv.
@@ -252,6 +253,7 @@ class Run:
         """The CSV files and their samplers: the section's profiles in 2D; in 3D, across and
         along the finger through the load, and the force per unit length f(z)."""
         scene, out, comm, p = self.scene, self.out, self.comm, self.problem
+        self.arrays = FieldArrays(p, self.derived)  # fields_t<t>s.npz, for Result.to_pyvista
         if not self.three_d:
             self.history = CsvLog(out / "history.csv", HISTORY_COLUMNS, comm, after)
             self.surfaces = {"": CsvLog(out / "surface_profile.csv", SURFACE_COLUMNS, comm,
@@ -259,7 +261,6 @@ class Run:
             self.depth = CsvLog(out / "depth_profiles.csv", DEPTH_COLUMNS, comm, after)
             self.line_force = None
             self.profiles = Profiles(p, self.derived, scene.section.outer, scene.outputs)
-            self.arrays = FieldArrays(p, self.derived)
             return
         self.history = CsvLog(out / "history.csv", HISTORY_COLUMNS_3D, comm, after)
         self.surfaces = {d: CsvLog(out / f"surface_{d}.csv", SURFACE_COLUMNS_3D, comm, after)
@@ -268,7 +269,6 @@ class Run:
         self.line_force = CsvLog(out / "line_force.csv", LINE_FORCE_COLUMNS, comm, after)
         z_c, x_c = profile_position(scene)
         self.profiles = Profiles3D(p, self.derived, scene.section, scene.outputs, z_c, x_c)
-        self.arrays = None  # the corner arrays and pictures are the 2D section's
 
     def _resume(self):
         """Load the checkpoint; returns the step options that continue with its step size."""
@@ -358,12 +358,10 @@ class Run:
         self.depth.write(self.profiles.depth_rows(t))
         if self.line_force is not None:
             self.line_force.write(self.profiles.line_force_rows(t))
-        if self.arrays is None:
-            return
         arrays = self.arrays()  # updates the derived fields
         if self.comm.rank == 0:
             save_npz(self.out / f"fields_t{t:g}s.npz", time=t, **arrays)
-        if self.scene.outputs.pictures:
+        if self.scene.outputs.pictures and not self.three_d:  # the pictures are the section's
             with whole_files(self.out, "pictures", self.comm) as folder:
                 field_pictures(self.problem, self.derived, folder, t, self.scene.title)
 

@@ -148,7 +148,7 @@ def keys_of_reference() -> dict[str, set[str]]:
 
 #: Headings of the API page, by the module that defines a name.
 API_GROUPS = {
-    "Scenes and runs": ("scene", "runner", "result", "adaptivity"),
+    "Scenes and runs": ("scene", "routes", "runner", "result", "adaptivity"),
     "Materials": ("tissues", "materials"),
     "Geometry, meshes, indenters and protocols": ("geometry", "mesh", "geometry3d", "mesh3d",
                                                    "indenters", "loading"),

@@ -1,0 +1,253 @@
+"""The route a scene takes, the same from Python (`ft.run`) and from `fingertip run`.
+
+`run(scene, out, ...)` sends a scene
+
+- with a `[harmonic]` table, or given `frequencies` or `state`, to the **frequency route**
+  (frequency_response.py: the small-signal response about the pressed state); it returns a
+  `FrequencyResult` (result.py: K(ω), Z(ω), the receptor transfer functions, the thresholds);
+- with a tolerance (`tol`, else the scene's `[accuracy] tol`) or `max_levels`, to the
+  **adaptive loop** (adaptivity.py: meshes refined until every key output's estimated error
+  is below `tol`); it returns the `Result` of the answer, the finest level, whose files are
+  copied into `out` (the loop's record: out/adapt.json, `adaptivity.read_adapt(out)`);
+- otherwise to **one time run** (runner.py); it returns its `Result`.
+
+`fidelity="auto"` first picks the cheapest model of the fidelity ladder whose key outputs stay
+within `tol` of the full model (studies/fidelity.py), then routes the scene with that model.
+The returned object's `route` says which route was taken ("time", "adaptive", "frequency").
+`fingertip run` parses its command line into these arguments and prints what comes back; an
+error names an argument as the command line spells it (`--tol` for `tol=`).
+
+The heavy modules (DOLFINx) are imported by the functions that need them, so that the command
+line's `--help`, which reads the defaults below, stays instant.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from .errors import InputError, RunInterrupted
+
+if TYPE_CHECKING:
+    from mpi4py import MPI
+
+    from .result import FrequencyResult, Result
+    from .scene import Scene
+
+#: The routes, in the order they are tried.
+ROUTES = ("frequency", "adaptive", "time")
+#: `fidelity="auto"`: the model's tolerance when no `tol` is given.
+AUTO_FIDELITY_TOL = 0.05
+#: The coarse settings the fidelity ladder runs at (and the studies, unless --full): a mesh
+#: 2x coarser than the scenes'.
+FIDELITY_COARSE = ("section.mesh.min_size=0.2", "section.mesh.max_size=1.0",
+                   "section.mesh.bone_size=2.0")
+
+
+def run(scene: Scene | str | Path, out: str | Path, *,
+        overrides: Mapping | Sequence[str] = (), spacing: float | None = None,
+        tol: float | None = None, max_levels: int | None = None, fidelity: str = "scene",
+        fidelity_table: str | Path | None = None, frequencies=None, state: str | None = None,
+        resume: bool = False, progress: bool = True, comm: MPI.Comm | None = None,
+        say: Callable[[str], None] | None = None) -> Result | FrequencyResult:
+    """Run `scene` into `out` by its route (the module's docstring) and return its results.
+
+    Parameters
+    ----------
+    scene : a `Scene`, or a built-in scene's name or a scene file (loaded with `overrides`
+        and `spacing`, as `load_scene` does; `fidelity="auto"` needs this form).
+    out : the output directory.
+    overrides, spacing : applied to the scene file (`key=value` strings or nested tables;
+        a 2pt scene's bar spacing, mm), as `fingertip run`'s --set, --config and --spacing.
+    tol : relative error asked of every key output: the adaptive loop (with
+        `fidelity="auto"`: the model's tolerance instead, default `AUTO_FIDELITY_TOL`).
+    max_levels : most mesh levels of the adaptive loop (default: the scene's `[accuracy]`).
+    fidelity : "scene" (the scene's own model) or "auto".
+    fidelity_table : a fidelity.csv for `fidelity="auto"`; without it the ladder is run on
+        a coarse mesh into out/fidelity/ first.
+    frequencies, state : the frequency route's frequencies (Hz: "START:STOP:COUNT" or a
+        list) and pressed state ("held" or "relaxed"), over the scene's `[harmonic]`.
+    resume : continue an interrupted time run in `out`.
+    progress : show progress bars (and `say` prints its sentences).
+    comm : the ranks that run it (default: all of MPI.COMM_WORLD).
+    say : where the route's sentences go (which model `fidelity="auto"` picked, the
+        adaptive loop's verdict); default: printed by rank 0 to stderr when `progress`.
+
+    Returns
+    -------
+    `Result` (time and adaptive routes) or `FrequencyResult`, with `route` set.
+
+    Raises
+    ------
+    InputError for arguments that do not fit the route; `ConvergenceError` (files written up
+    to the last good step); `RunInterrupted` on SIGINT/SIGTERM (its `route` set too).
+    """
+    say = say or _printer(progress)
+    out = Path(out)
+    scene, mesh_tol = _scene_of(scene, out, overrides, spacing, tol, fidelity, fidelity_table,
+                                progress, say)
+    kind = route_of(scene, tol=mesh_tol, max_levels=max_levels, frequencies=frequencies,
+                    state=state)
+    try:
+        if kind == "frequency":
+            result = _frequency(scene, out, frequencies, state, resume, tol, fidelity,
+                                progress, comm)
+        elif kind == "adaptive":
+            result = _adaptive(scene, out, mesh_tol, max_levels, resume, progress, comm, say)
+        else:
+            result = _time(scene, out, resume, progress, comm, say)
+    except RunInterrupted as stop:
+        stop.route = kind  # only a time run can be resumed
+        raise
+    result.route = kind
+    return result
+
+
+def route_of(scene: Scene, *, tol: float | None = None, max_levels: int | None = None,
+             frequencies=None, state: str | None = None) -> str:
+    """The route `run` takes for `scene` with these arguments, nothing computed: "frequency"
+    (a `[harmonic]` table, `frequencies` or `state`), "adaptive" (`tol`, the scene's
+    `[accuracy] tol`, or `max_levels`) or "time"."""
+    if frequencies is not None or state is not None or scene.harmonic is not None:
+        return "frequency"
+    if tol is None:
+        tol = scene.accuracy.tol
+    if tol is not None or max_levels is not None:
+        return "adaptive"
+    return "time"
+
+
+def _scene_of(scene, out: Path, overrides, spacing, tol, fidelity, table, progress, say):
+    """(the scene, the adaptive loop's tol): loaded from its source with the overrides and,
+    with fidelity "auto", the settings of the model picked (whose tolerance `tol` then is)."""
+    from .scene import Scene, load_scene
+
+    if fidelity not in ("scene", "auto"):
+        raise InputError(f"fidelity {fidelity!r}", "is not a fidelity.", 'use "scene" or "auto".')
+    if isinstance(scene, Scene):
+        if overrides or spacing is not None:
+            raise InputError("overrides/spacing", "apply to a scene read from its file.",
+                             "give the scene's name or file, or load_scene(..., overrides).")
+        if fidelity == "auto":
+            raise InputError("--fidelity auto", "runs the scene file again with each model of "
+                             "the ladder, and a Scene object has no file.",
+                             "give the scene's name or file (with overrides=) instead.")
+        return scene, tol
+    overrides = _as_list(overrides)
+    if fidelity == "auto":
+        model_tol = AUTO_FIDELITY_TOL if tol is None else tol
+        overrides += auto_fidelity(scene, out, overrides, model_tol, table, progress, say)
+        tol = None  # the mesh follows the scene's [accuracy] tol
+    return load_scene(scene, overrides, spacing=spacing), tol
+
+
+def _as_list(overrides) -> list:
+    """Overrides as a list of `key=value` texts (a nested mapping flattened)."""
+    from .scene import overrides_as_text
+
+    return list(overrides_as_text(overrides))
+
+
+def auto_fidelity(source: str | Path, out: Path, overrides: list, tol: float,
+                  table: str | Path | None = None, progress: bool = True,
+                  say: Callable[[str], None] = print) -> list[str]:
+    """The overrides of the cheapest model of the fidelity ladder within `tol` of the full
+    one, from `table` (a fidelity.csv) or from the ladder run on a coarse mesh into
+    out/fidelity/; `say` is told which model was picked and why."""
+    from .studies.fidelity import pick, read_table, run_fidelity_study, settings_of
+
+    if not tol > 0:
+        raise InputError("--tol", f"must be positive, got {tol}.")
+    if table is not None:
+        if not Path(table).is_file():
+            raise InputError(f"--fidelity-table {table}", "no such file.",
+                             "run `fingertip study fidelity` first, or leave it out.")
+        rows, where = read_table(Path(table)), str(table)
+    else:
+        say("--fidelity auto: running the fidelity ladder on a coarse mesh first")
+        rows = run_fidelity_study(source, out / "fidelity", list(FIDELITY_COARSE) + overrides,
+                                  progress=progress)
+        where = f"{out}/fidelity/fidelity.csv"
+    try:
+        model, why = pick(rows, tol)
+    except StopIteration:
+        raise InputError("--tol", f"no model of the ladder is within {tol:.2%} of the full "
+                         "model (not even the full one with rigid bone).",
+                         "raise --tol or use --fidelity scene.") from None
+    say(f"--fidelity auto picked '{model}': {why} (from {where})")
+    return settings_of(model)
+
+
+def _time(scene: Scene, out: Path, resume: bool, progress: bool, comm, say) -> Result:
+    """One run (runner.py); resuming a completed run computes nothing."""
+    from mpi4py import MPI
+
+    from .result import Result
+    from .runner import completed_summary, run_scene
+
+    if resume and completed_summary(scene, out, comm or MPI.COMM_WORLD) is not None:
+        say(f"{scene.name}: the run in {out} is already complete (to t = "
+            f"{scene.history.end_time:g} s); nothing computed, nothing rewritten.")
+    else:
+        run_scene(scene, out, resume=resume, progress=progress, comm=comm)
+    return Result(out)
+
+
+def _adaptive(scene: Scene, out: Path, tol, max_levels, resume, progress, comm, say) -> Result:
+    """The adaptive mesh loop (adaptivity.py) to `tol`, else the scene's [accuracy] tol; the
+    answer's files are in `out`."""
+    from .adaptivity import AdaptOptions, adapt
+    from .result import Result
+
+    if tol is None:
+        tol = scene.accuracy.tol
+    if tol is None:
+        raise InputError("--max-levels", "is for the adaptive loop.",
+                         "give --tol too (or [accuracy] tol in the scene).")
+    if not 0 < tol < 1:
+        raise InputError(f"--tol {tol}", "must be a relative error in (0, 1).",
+                         "give e.g. --tol 0.01 for 1 %.")
+    if max_levels is not None and max_levels < 2:
+        raise InputError(f"--max-levels {max_levels}", "an error estimate needs two "
+                         "levels.", "give 2 or more.")
+    if resume:
+        raise InputError("--resume", "cannot continue the adaptive loop (--tol or the scene's "
+                         "[accuracy] tol).", "run it again into a new directory.")
+    levels = scene.accuracy.max_levels if max_levels is None else max_levels
+    scene = dataclasses.replace(scene, accuracy=dataclasses.replace(
+        scene.accuracy, tol=tol, max_levels=levels))
+    report = adapt(scene, out, AdaptOptions(tol=tol, max_levels=levels), progress=progress,
+                   comm=comm)
+    say(report["message"])
+    return Result(out)
+
+
+def _frequency(scene: Scene, out: Path, frequencies, state, resume, tol, fidelity, progress,
+               comm) -> FrequencyResult:
+    """The frequency route (frequency_response.py)."""
+    from mpi4py import MPI
+
+    from .frequency_response import run_frequency_response
+    from .result import FrequencyResult
+
+    for flag, given in (("--resume", resume), ("--tol", tol is not None),
+                        ("--fidelity auto", fidelity == "auto")):
+        if given:
+            raise InputError(flag, "is not available on the frequency route.",
+                             f"drop {flag} (or --frequencies).")
+    run_frequency_response(scene, out, frequencies=frequencies, state=state, progress=progress,
+                           comm=comm or MPI.COMM_WORLD)
+    return FrequencyResult(out)
+
+
+def _printer(progress: bool) -> Callable[[str], None]:
+    """Rank 0 prints to stderr when `progress`; otherwise nothing is said."""
+    def say(text: str) -> None:
+        from mpi4py import MPI
+
+        if progress and MPI.COMM_WORLD.rank == 0:
+            print(text, file=sys.stderr)
+    return say
