@@ -80,26 +80,31 @@ def test_the_paper_s_history_is_kept_at_long_times():
 
 @pytest.mark.slow
 def test_a_coarse_1pt_ramp_and_hold_is_the_paper_s(shared_tmp_path):
-    """Coarse 1pt (1 mm in 1 s) held to 1.2 s, both sets. At the ramp's end the damped skin
-    adds ∫ mu' Σ g_f e^{−(t−s)/τ_f} dS_e(s) ≤ mu' Σ g_f τ_f max Ṡ_e ≈ SCALE Σ g_f τ_f n S_e / t
-    (n = d ln F / d ln t at the ramp's end standing in for the skin stress's exponent; the
-    pulp, without fast terms, only lowers the share): > 0 and below that bound (~3 %). After
-    0.2 s of hold (20 τ_max) the fast terms are gone: the forces agree to 1e-3."""
+    """Coarse 1pt (1 mm in 1 s, steps ≤ 0.05 s) held to 1.2 s, both sets.
+
+    The contact reads the skin's instantaneous modulus (γ = γ0 M/h and Nitsche's traction
+    estimate from the elastic stress), 6.85 times the paper's here: its O(1/γ0) error differs
+    between the sets, 1.0 % of the held force at the default γ0 = 10 (measured), 0.10 % at
+    γ0 = 100, used here. After 0.2 s of hold (20 τ_max) the fast terms are gone: the forces
+    agree to 2e-3. At the ramp's end the fast terms act as a viscous stress mu' Σ g_f τ_f Ṡ_e:
+    the force exceeds the paper's, by less than E = SCALE Σ g_f τ_f Ḟ/F (the whole force in
+    the skin; measured 0.47 % against E = 1.4 %: the pulp takes most of the force)."""
     from fingertip_dolfinx.runner import run
     from fingertip_dolfinx.scene import load_scene
 
     coarse = ["section.mesh.min_size=0.2", "section.mesh.max_size=1.0",
-              "section.mesh.bone_size=2.0", "output.pictures=false", "protocol.end_time=1.2"]
+              "section.mesh.bone_size=2.0", "output.pictures=false", "protocol.end_time=1.2",
+              "steps.dt_max=0.05", "model.contact_gamma0=100.0"]
     runs = {m: run(load_scene("1pt", [*coarse, f'materials.set="{m}"']),
                    shared_tmp_path / f"damping-{m}", progress=False)
             for m in ("wu2004", "damped-fingerpad")}
     paper, damped = runs["wu2004"], runs["damped-fingerpad"]
-    at = {m: int(np.argmin(abs(r.time - 1.0))) for m, r in runs.items()}
-    assert paper.time[at["wu2004"]] == pytest.approx(1.0) == damped.time[at["damped-fingerpad"]]
-    t, force = paper.time[1:at["wu2004"] + 1], paper.force[1:at["wu2004"] + 1]
-    n = np.gradient(np.log(force), np.log(t))[-1]
+    end = {m: int(np.argmin(abs(r.time - 1.0))) for m, r in runs.items()}
+    assert paper.time[end["wu2004"]] == pytest.approx(1.0) == damped.time[end["damped-fingerpad"]]
+    i, f = end["wu2004"], paper.force
+    rate = (f[i] - f[i - 1]) / (paper.time[i] - paper.time[i - 1]) / f[i]
     prony = DAMPED.skin_prony
-    bound = SCALE * sum(g * tau for g, tau in zip(prony.g[:FAST], prony.tau[:FAST])) * n / t[-1]
-    assert 0 < damped.force[at["damped-fingerpad"]] / force[-1] - 1 < bound
-    assert damped.time[-1] == pytest.approx(1.2) == paper.time[-1]
-    assert damped.force[-1] == pytest.approx(paper.force[-1], rel=1e-3)
+    bound = SCALE * sum(g * tau for g, tau in zip(prony.g[:FAST], prony.tau[:FAST])) * rate
+    assert 0 < damped.force[end["damped-fingerpad"]] / f[i] - 1 < bound
+    assert paper.time[-1] == pytest.approx(1.2) == damped.time[-1]
+    assert damped.force[-1] == pytest.approx(f[-1], rel=2e-3)
