@@ -101,6 +101,12 @@ def load_afferents(source: str | Path = MODEL, classes=CLASSES, rows=None) -> Af
                      fs=float(data["sampling_Hz"]), refractory=int(data["refractory_samples"]))
 
 
+def model_depths(source: str | Path = MODEL) -> dict[str, float]:
+    """The depth (mm) at which the fits of each class read their half-space stress."""
+    return {k: float(v) for k, v in read_toml(find("receptors", source, "afferent model"))[
+        "depth_mm"].items()}
+
+
 # --- the stages -------------------------------------------------------------------------------
 
 
@@ -121,8 +127,9 @@ def rectified(weights: np.ndarray, s: np.ndarray, u: np.ndarray) -> np.ndarray:
     terms = (s, u, du)
     current = np.zeros(np.broadcast_shapes(s.shape, u.shape))
     for k, x in enumerate(terms):
-        current += weights[:, 2 * k, None] * np.maximum(x, 0.0)
-        current += weights[:, 2 * k + 1, None] * np.maximum(-x, 0.0)
+        for col, sign in ((2 * k, 1.0), (2 * k + 1, -1.0)):
+            if np.any(weights[:, col]):  # (RA and PC weigh no [s], SA1 no [Δu])
+                current += weights[:, col, None] * np.maximum(sign * x, 0.0)
     return current
 
 
@@ -136,23 +143,31 @@ def saturated(current: np.ndarray, saturation: np.ndarray) -> np.ndarray:
 
 def integrate_and_fire(j: np.ndarray, tau: np.ndarray, post_spike: np.ndarray,
                        refractory: int) -> np.ndarray:
-    """Spike flags (n, T) of the discrete leaky integrate-and-fire neurons driven by j (n, T)."""
+    """Spike flags (n, T) of the discrete leaky integrate-and-fire neurons driven by j (n, T).
+    The loop runs over samples, each step vectorised over the afferents (in-place updates:
+    the cost is per step, nearly independent of n up to ~1e3)."""
     n, steps = j.shape
     m = post_spike.shape[1]
-    h = np.concatenate([post_spike, np.zeros((n, 1))], axis=1)  # column m: no current
-    rows = np.arange(n)
+    h = np.concatenate([post_spike, np.zeros((n, 1))], axis=1).ravel()  # column m: none
+    base = np.arange(n) * (m + 1)
     leak = 1.0 - 1.0 / tau
+    drive = np.ascontiguousarray(np.asarray(j, dtype=float).T)
     v = np.zeros(n)
     since = np.full(n, m)  # samples since the last spike, capped at m (none yet: m)
-    spikes = np.zeros((n, steps), dtype=bool)
+    spikes = np.zeros((steps, n), dtype=bool)
+    fire = np.empty(n, dtype=bool)
     for k in range(steps):
-        v = v * leak + j[:, k] + h[rows, since]
-        since = np.minimum(since + 1, m)
-        fire = (v > 1.0) & (since >= refractory)
-        spikes[:, k] = fire
-        v[fire] = 0.0
-        since[fire] = 0
-    return spikes
+        v *= leak
+        v += drive[k]
+        v += h.take(base + since)
+        since += 1
+        np.minimum(since, m, out=since)
+        np.greater(v, 1.0, out=fire)
+        fire &= since >= refractory
+        spikes[k] = fire
+        np.putmask(v, fire, 0.0)
+        np.putmask(since, fire, 0)
+    return spikes.T
 
 
 def currents(aff: Afferents, static, dynamic, *, noisy: bool = False, rng=None) -> np.ndarray:
