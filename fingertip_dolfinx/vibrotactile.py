@@ -460,7 +460,7 @@ def _saal_search(aff, f, s0, scale, kappa):
     """Geometric bisection per lane of the smallest amplitude with a spike in the counted
     cycles (I0) and with one in each (I1), in the site quantity's units, both in one
     simulation per round (lanes doubled); inf if SAAL_RANGE's top does not meet the criterion,
-    NaN if its bottom already does (the pressed value alone fires)."""
+    NaN (both) if its bottom already fires (the pressed value alone fires)."""
     both = aff.take(np.tile(np.arange(len(aff)), 2))
     f2, s02 = np.tile(f, 2), np.tile(s0, 2)
     entrain = np.arange(2 * len(f)) >= len(f)
@@ -476,7 +476,11 @@ def _saal_search(aff, f, s0, scale, kappa):
         mid = np.sqrt(lo * hi)
         ok = meets(mid)
         hi, lo = np.where(ok, mid, hi), np.where(ok, lo, mid)
-    out = np.where(bottom, np.nan, np.where(top, hi, np.inf))
+    # at rest or not is the I0 criterion's bottom (any spike on s0 alone): a site that fires
+    # on its pressed value has neither threshold (an ongoing discharge the vibration merely
+    # entrains is not an I1), as for the LIF
+    busy = np.tile(bottom[: len(f)], 2)
+    out = np.where(busy, np.nan, np.where(top, hi, np.inf))
     return out[: len(f)], out[len(f):]
 
 
