@@ -55,9 +55,15 @@ out here, and lets V integrate (from 0) during its 1.2 ms without spikes, where 
 here. Its fitted parameter sets (17 afferents) were fitted to recordings *with its own
 mechanics* (vertical stress of a Sneddon half-space, E = 50 kPa, plus a surface wave): they do
 not carry over to this model's stresses without refitting against afferent recordings, which
-this package does not have. The shipped parameters take TouchSim's time scales and the form of
-its weights (which terms each class uses) and set every weight's scale by a stated criterion,
-marked as an assumption in the data file.
+this package does not have. The `default` set's parameters take TouchSim's time scales and the
+form of its weights (which terms each class uses) and set every weight's scale by a stated
+criterion, marked as an assumption in the data file.
+
+(c) TouchSim's fitted afferents themselves, `model = "saal2017"` in a class (`SaalModel`; the
+model is `afferents.transduction`): the site quantity is mapped to their input with one
+calibrated scale per class (the `calibrated` set; scripts/calibrate_afferents.py), the rate
+input with TouchSim's own factor κ. On a run, `afferent_responses` interpolates the steps'
+samples onto the model's 5 kHz grid (`saal_spikes`).
 """
 
 from __future__ import annotations

@@ -63,6 +63,14 @@ static weight reads s0), RA 2.6 s, PC 2.0 s; 9.2 s for the three classes. The tr
 no high-frequency roll-off of its own (TouchSim's input low-pass is left out, see
 `receptors.threshold_amplitude`): with a frequency-independent H, RA thresholds fall as 1/f and
 PC's as 1/f² without end; any U shape must come from the mechanics' H.
+
+**The Saal et al. 2017 afferents** (a class with `model = "saal2017"`, receptors.SaalModel):
+discrete-time models at 5 kHz with their own low-pass and post-spike current, so no closed
+form per piece; `saal_thresholds_stimulus` simulates every (lane, fit) on s0 + a sin θ (after
+SAAL_SETTLE, counting at least SAAL_COUNT seconds) and bisects the amplitude geometrically per
+lane (SAAL_BISECTIONS rounds, 1 %). Per site the most sensitive fit counts. Fed TouchSim's own
+quasi-static mechanics they have the classic tuning (PC I1 lowest near 200 Hz, RA near 30 Hz,
+SA1 below 10 Hz; tests/test_vibrotactile.py).
 """
 
 from __future__ import annotations
