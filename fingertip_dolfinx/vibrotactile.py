@@ -406,12 +406,20 @@ def vibration_thresholds(cls: ReceptorClass, frequencies, transfer, static, *,
 def rate_vs_amplitude(cls: ReceptorClass, frequencies, transfer, static, amplitudes, *,
                       cycles: int = 20, samples: int = SAMPLES) -> np.ndarray:
     """Steady-state firing rate (spikes/s) for probe amplitudes A (mm), shape
-    (n_f, n_sites, n_A): mean spikes per counted cycle × f (resolution f / cycles)."""
+    (n_f, n_sites, n_A): mean spikes per counted cycle × f (resolution f / cycles). For the
+    Saal et al. fits, site k uses fit k mod n (as the time route) and the counted cycles of
+    `saal_cycle_counts` (`cycles`, `samples` unused)."""
     f, h, s0 = _check(frequencies, transfer, static)
     amps = np.atleast_1d(np.asarray(amplitudes, dtype=float))
     ff = np.broadcast_to(f[:, None, None], (len(f), len(s0), len(amps)))
     aa = np.abs(h)[:, :, None] * amps[None, None, :]
     ss = np.broadcast_to(s0[None, :, None], ff.shape)
+    if cls.model == "saal2017":
+        fits = cls.saal.afferents(cls.name)
+        site = np.broadcast_to(np.arange(len(s0))[None, :, None], ff.shape).ravel()
+        total, _ = saal_cycle_counts(fits.take(site % len(fits)), ff.ravel(), aa.ravel(),
+                                     ss.ravel(), cls.saal.input_scale, cls.saal.kappa(cls.name))
+        return (total / _saal_counted(ff.ravel()) * ff.ravel()).reshape(ff.shape)
     counts = cycle_response(cls.lif, ff.ravel(), aa.ravel(), ss.ravel(), cycles=cycles,
                             samples=samples)
     return (counts.mean(axis=1) * ff.ravel()).reshape(ff.shape)

@@ -295,3 +295,17 @@ def test_saal_site_firing_on_its_pressed_value_has_no_entrainment_threshold_eith
     s0 = 0.02  # MPa of TouchSim stress: fires ~10-30 spikes/s on its own (fits 0-3)
     i0, i1 = vt.saal_thresholds_stimulus(cls, [40.0], [s0])
     assert np.isnan(i0[0]) and np.isnan(i1[0])
+
+
+def test_saal_rate_is_zero_below_i0_and_one_per_cycle_at_i1():
+    """Impulses per cycle vs amplitude for a fitted RA (site 0 uses fit 0): none just below
+    that fit's I0, at least one per cycle just above its I1 (1 % search brackets: 3 %
+    margins)."""
+    import dataclasses
+
+    cls = _touchsim_class("RA")
+    cls = dataclasses.replace(cls, saal=dataclasses.replace(cls.saal, fits=(0,)))
+    f = 40.0
+    i0, i1 = vt.saal_thresholds_stimulus(cls, [f], [0.0])
+    rates = vt.rate_vs_amplitude(cls, [f], [[1.0]], [0.0], [0.97 * i0[0], 1.03 * i1[0]])[0, 0]
+    assert rates[0] == 0 and rates[1] >= f
