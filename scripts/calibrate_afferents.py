@@ -5,6 +5,8 @@ TouchSim, and write the agreement table and the residuals.
         --set section.mesh.min_size=0.2 --set section.mesh.max_size=1.0 \\
         --set section.mesh.bone_size=2.0 --out RUN
     PYTHONPATH=. python scripts/calibrate_afferents.py RUN [OUT]   # OUT: docs/results/afferents
+    # TouchSim's own regression sinusoids (rates), on a run at --frequencies 10,25,250:
+    PYTHONPATH=. python scripts/calibrate_afferents.py --rates RUN2
 
 **What is matched.** TouchSim's mechanics under its default pin (radius 0.5 mm, a Sneddon
 half-space with no inertia) gives each class's input per mm of pin displacement, c_s
@@ -34,7 +36,11 @@ from pathlib import Path
 import numpy as np
 
 from fingertip_dolfinx.receptors import QUANTITIES, load_receptors
-from fingertip_dolfinx.vibrotactile import saal_thresholds_stimulus, vibration_thresholds
+from fingertip_dolfinx.vibrotactile import (
+    rate_vs_amplitude,
+    saal_thresholds_stimulus,
+    vibration_thresholds,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 REFERENCE = ROOT / "tests" / "data" / "touchsim_reference.json"
@@ -102,12 +108,48 @@ def calibrate(run: Path, out: Path):
     return rows, summary
 
 
+#: TouchSim's own regression sinusoids (its tests/test_response.py): class, f (Hz), A (mm).
+TEST_SINES = (("SA1", 10.0, 0.5), ("RA", 25.0, 0.5), ("PC", 250.0, 0.005))
+
+
+def test_sine_rates(run: Path) -> list[dict]:
+    """TouchSim's rate (fit 0, under its 0.5 mm pin, reference JSON) for its own test
+    sinusoids next to the package's: fit 0 at the site under the probe, about rest, the
+    small-signal |H| at that frequency (the run must hold it: --frequencies 10,25,250)."""
+    ref = {r["label"]: r for r in json.loads(REFERENCE.read_text())["stimuli"]}
+    population = load_receptors("calibrated")
+    out = []
+    for name, f, amp in TEST_SINES:
+        cls = population[name]
+        cls = dataclasses.replace(cls, saal=dataclasses.replace(cls.saal, fits=(0,)))
+        freqs, h, s0 = read_run(run, cls)
+        j = int(np.argmin(np.abs(freqs - f)))
+        if abs(freqs[j] - f) > 1e-9 * f:
+            raise SystemExit(f"{run} has no {f:g} Hz: run it with --frequencies 10,25,250")
+        site = int(np.argmax(h[j]))
+        ours = rate_vs_amplitude(cls, [f], h[j:j + 1, site:site + 1], [0.0], [amp])[0, 0, 0]
+        theirs = next(r for r in ref[f"sine {f:g} Hz {amp:g} mm"]["responses"]
+                      if r["class"] == name and r["index"] == 0)
+        out.append({"class": name, "frequency_Hz": f, "amplitude_mm": amp,
+                    "touchsim_rate": theirs["rate"], "package_rate": float(ours)})
+    return out
+
+
 def _touchsim_input(cls):
     """TouchSim's own input: α = 1 on its stress (H = c_s handled by the caller)."""
     return dataclasses.replace(cls.saal, input_scale=1.0)
 
 
 def main():
+    if sys.argv[1] == "--rates":  # TouchSim's regression sinusoids on a run at 10, 25, 250 Hz
+        rows = test_sine_rates(Path(sys.argv[2]))
+        print("| stimulus | class | TouchSim fit 0 (spikes/s) | this package fit 0 | ratio |")
+        print("| --- | --- | --- | --- | --- |")
+        for r in rows:
+            print(f"| sine {r['frequency_Hz']:g} Hz, {r['amplitude_mm'] * 1e3:g} µm | "
+                  f"{r['class']} | {r['touchsim_rate']:.4g} | {r['package_rate']:.4g} | "
+                  f"{r['package_rate'] / r['touchsim_rate']:.3g} |")
+        return
     run = Path(sys.argv[1])
     out = Path(sys.argv[2]) if len(sys.argv) > 2 else ROOT / "docs" / "results" / "afferents"
     rows, summary = calibrate(run, out)
