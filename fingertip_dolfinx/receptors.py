@@ -55,9 +55,15 @@ out here, and lets V integrate (from 0) during its 1.2 ms without spikes, where 
 here. Its fitted parameter sets (17 afferents) were fitted to recordings *with its own
 mechanics* (vertical stress of a Sneddon half-space, E = 50 kPa, plus a surface wave): they do
 not carry over to this model's stresses without refitting against afferent recordings, which
-this package does not have. The shipped parameters take TouchSim's time scales and the form of
-its weights (which terms each class uses) and set every weight's scale by a stated criterion,
-marked as an assumption in the data file.
+this package does not have. The `default` set's parameters take TouchSim's time scales and the
+form of its weights (which terms each class uses) and set every weight's scale by a stated
+criterion, marked as an assumption in the data file.
+
+(c) TouchSim's fitted afferents themselves, `model = "saal2017"` in a class (`SaalModel`; the
+model is `afferents.transduction`): the site quantity is mapped to their input with one
+calibrated scale per class (the `calibrated` set; scripts/calibrate_afferents.py), the rate
+input with TouchSim's own factor κ. On a run, `afferent_responses` interpolates the steps'
+samples onto the model's 5 kHz grid (`saal_spikes`).
 """
 
 from __future__ import annotations
@@ -70,6 +76,14 @@ from pathlib import Path
 
 import numpy as np
 
+from .afferents.transduction import (
+    Afferents,
+    load_afferents,
+    model_depths,
+    rate_factor,
+    site_inputs,
+    spike_times,
+)
 from .datafiles import find, read_toml
 from .errors import InputError
 from .validation import check_keys, number, positive
@@ -88,6 +102,11 @@ RECEPTOR_COLUMNS = ("time_s", "class", "index", "x_mm", "depth_mm", "sed_MPa", "
 WEIGHTS = ("s_pos", "s_neg", "ds_pos", "ds_neg", "dds_pos", "dds_neg")
 HOLDS = ("linear", "constant")
 DEFAULT_SET = "default"
+#: Transduction models a class may use: this module's LIF (`[X.lif]`) or the fitted afferents
+#: of Saal, Delhaye et al. 2017 (`[X.saal2017]`, afferents.transduction).
+MODELS = ("lif", "saal2017")
+#: TouchSim's default pin radius (mm; generators.stim_sine/stim_ramp), for κ (see SaalModel).
+TOUCHSIM_PIN = 0.5
 
 
 # --- the data --------------------------------------------------------------------------------
@@ -147,17 +166,58 @@ class LIF:
 
 
 @dataclass(frozen=True)
+class SaalModel:
+    """A class's use of the Saal et al. 2017 fits (afferents.transduction): which `fits` (rows
+    of its class in the parameter file `source`), and the map from the site quantity s to the
+    fits' inputs: static = α s, dynamic = α κ ṡ. α (`input_scale`) is the calibration (TouchSim's
+    half-space stress per unit of s); κ is TouchSim's own ratio of dynamic input to stress rate
+    under a pin of `pin_radius` at its depth for the class (`transduction.rate_factor`)."""
+
+    fits: tuple[int, ...]
+    input_scale: float
+    pin_radius: float = TOUCHSIM_PIN
+    source: str = "saal2017"
+
+    def afferents(self, name: str) -> Afferents:
+        return load_afferents(self.source, (name,), {name: list(self.fits)})
+
+    def kappa(self, name: str) -> float:
+        return rate_factor(model_depths(self.source)[name], self.pin_radius)
+
+    def record(self) -> dict:
+        return {"fits": list(self.fits), "input_scale": self.input_scale,
+                "pin_radius": self.pin_radius, "source": self.source}
+
+    @classmethod
+    def from_dict(cls, name: str, data: Mapping, where: str) -> SaalModel:
+        check_keys(where, data, ("fits", "input_scale", "pin_radius", "source"),
+                   required=("input_scale",))
+        source = str(data.get("source", "saal2017"))
+        n = len(load_afferents(source, (name,)))
+        fits = tuple(int(i) for i in data.get("fits", range(n)))
+        if not fits or any(not 0 <= i < n for i in fits):
+            raise InputError(f"{where}.fits", f"{list(fits)}: {source} has fits 0..{n - 1} of "
+                             f"{name}.", "give a non-empty list of those indices.")
+        return cls(fits, positive(f"{where}.input_scale", data["input_scale"], "per unit"),
+                   positive(f"{where}.pin_radius", data.get("pin_radius", TOUCHSIM_PIN), "mm"),
+                   source)
+
+
+@dataclass(frozen=True)
 class ReceptorClass:
-    """One class: depth (mm), density (per cm²), the quantity its models read, its LIF and,
-    optionally, the gain of the SED-proportional rate (spikes/s per MPa)."""
+    """One class: depth (mm), density (per cm²), the quantity its models read, its transduction
+    `model` ("lif": `lif`; "saal2017": `saal`) and, optionally, the gain of the
+    SED-proportional rate (spikes/s per MPa)."""
 
     name: str
     depth: float
     density: float
     quantity: str
-    lif: LIF
+    lif: LIF | None
     sed_gain: float | None = None
     description: str = ""
+    model: str = "lif"
+    saal: SaalModel | None = None
 
     @property
     def spacing(self) -> float:
@@ -239,11 +299,16 @@ class ReceptorPopulation:
         """The set as plain data, in the data file's own tables (`receptors_from_dict` reads
         it back)."""
         def table(c: ReceptorClass) -> dict:
-            lif = {"tau": c.lif.tau, "refractory": c.lif.refractory,
-                   "saturation": c.lif.saturation, **dict(zip(WEIGHTS, c.lif.weights))}
+            models = {"model": c.model}
+            if c.lif is not None:
+                models["lif"] = {"tau": c.lif.tau, "refractory": c.lif.refractory,
+                                 "saturation": c.lif.saturation,
+                                 **dict(zip(WEIGHTS, c.lif.weights))}
+            if c.saal is not None:
+                models["saal2017"] = c.saal.record()
             gain = {} if c.sed_gain is None else {"sed_gain": c.sed_gain}
             return {"description": c.description, "depth": c.depth, "density": c.density,
-                    "quantity": c.quantity, **gain, "lif": lif}
+                    "quantity": c.quantity, **gain, **models}
 
         return {"name": self.name, "description": self.description,
                 "sites": {"half_width": self.half_width},
@@ -316,20 +381,30 @@ def receptors_from_dict(data: Mapping, where: str = "receptors") -> ReceptorPopu
 
 
 def _receptor_class(name: str, data: Mapping, where: str) -> ReceptorClass:
-    check_keys(where, data, ("description", "depth", "density", "quantity", "sed_gain", "lif"),
-               required=("depth", "density", "quantity", "lif"))
+    check_keys(where, data, ("description", "depth", "density", "quantity", "sed_gain", "model",
+                             "lif", "saal2017"), required=("depth", "density", "quantity"))
     quantity = data["quantity"]
     if quantity not in QUANTITIES:
         raise InputError(f"{where}.quantity", f"unknown quantity {quantity!r}.",
                          f"use one of {', '.join(QUANTITIES)}.")
+    model = data.get("model", "lif")
+    if model not in MODELS:
+        raise InputError(f"{where}.model", f"unknown transduction model {model!r}.",
+                         f"use one of {', '.join(MODELS)}.")
+    if model not in data:
+        raise InputError(where, f"uses model = {model!r} but has no [{name}.{model}] table.",
+                         "add the table (see data/receptors/default.toml, calibrated.toml).")
     gain = data.get("sed_gain")
     if gain is not None:
         gain = positive(f"{where}.sed_gain", gain, "spikes/s per MPa")
+    lif = LIF.from_dict(data["lif"], f"{where}.lif") if "lif" in data else None
+    saal = (SaalModel.from_dict(name, data["saal2017"], f"{where}.saal2017")
+            if "saal2017" in data else None)
     return ReceptorClass(
         name=name, depth=positive(f"{where}.depth", data["depth"], "mm"),
         density=positive(f"{where}.density", data["density"], "per cm²"), quantity=quantity,
-        lif=LIF.from_dict(data["lif"], f"{where}.lif"), sed_gain=gain,
-        description=str(data.get("description", "")))
+        lif=lif, sed_gain=gain, description=str(data.get("description", "")), model=model,
+        saal=saal)
 
 
 # --- the stimulus and the transduction ------------------------------------------------------
@@ -552,9 +627,11 @@ def afferent_responses(result, population: ReceptorPopulation | str | None = Non
         x[j], depth[j] = table["x_mm"][r], table["depth_mm"][r]
     spikes, rate = [], np.zeros((n_t, n_r))
     sed_rate = np.full((n_t, n_r), np.nan)
-    for j, (name, _) in enumerate(keys):
+    for j, (name, index) in enumerate(keys):
         c = population[name]
-        train = c.lif.spikes(times, np.nan_to_num(stimulus[:, j]), hold)
+        train = (saal_spikes(c, index, times, np.nan_to_num(stimulus[:, j]))
+                 if c.model == "saal2017" else
+                 c.lif.spikes(times, np.nan_to_num(stimulus[:, j]), hold))
         spikes.append(train)
         counts = np.histogram(train, bins=times)[0] if len(train) else np.zeros(n_t - 1)
         rate[1:, j] = counts / np.diff(times)
@@ -565,6 +642,20 @@ def afferent_responses(result, population: ReceptorPopulation | str | None = Non
         time=times, cls=np.array([k[0] for k in keys]), index=np.array([k[1] for k in keys]),
         x=x, depth=depth, stimulus=stimulus, spikes=spikes, rate=rate,
         mean_rate=np.array([len(s) / duration for s in spikes]), sed_rate=sed_rate)
+
+
+def saal_spikes(c: ReceptorClass, index: int, t, s) -> np.ndarray:
+    """Spike times (s) of site `index` of a class using the Saal et al. 2017 fits: the site's
+    fit is the class's fits in turn along the row (fits[index mod n], a deterministic mix as
+    TouchSim's random choice per afferent); the samples s at times t (from rest) are
+    interpolated linearly onto the model's 5 kHz grid (the run's steps carry no faster
+    content) and mapped to its inputs (SaalModel)."""
+    aff = c.saal.afferents(c.name)
+    aff = aff.take([index % len(aff)])
+    grid = np.arange(int(math.floor(t[-1] * aff.fs)) + 1) / aff.fs
+    static, dynamic = site_inputs(np.interp(grid, t, s), aff.fs, c.saal.input_scale,
+                                  c.saal.kappa(c.name))
+    return spike_times(aff, static, dynamic)[0]
 
 
 def threshold_amplitude(lif: LIF, frequency: float, *, offset: float = 0.0, cycles: int = 4,

@@ -61,6 +61,14 @@ Timings: docs/benchmarks/measurements.md (`benchmarks/vibrotactile_thresholds.py
 transduction has no high-frequency roll-off of its own (TouchSim's input low-pass is left out, see
 `receptors.threshold_amplitude`): with a frequency-independent H, RA thresholds fall as 1/f and
 PC's as 1/f² without end; any U shape must come from the mechanics' H.
+
+**The Saal et al. 2017 afferents** (a class with `model = "saal2017"`, receptors.SaalModel):
+discrete-time models at 5 kHz with their own low-pass and post-spike current, so no closed
+form per piece; `saal_thresholds_stimulus` simulates every (lane, fit) on s0 + a sin θ (after
+SAAL_SETTLE, counting at least SAAL_COUNT seconds) and bisects the amplitude geometrically per
+lane (SAAL_BISECTIONS rounds, 1 %). Per site the most sensitive fit counts. Fed TouchSim's own
+quasi-static mechanics they have the classic tuning (PC I1 lowest near 200 Hz, RA near 30 Hz,
+SA1 below 10 Hz; tests/test_vibrotactile.py).
 """
 
 from __future__ import annotations
@@ -70,6 +78,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .afferents.transduction import Afferents, site_inputs, spike_flags
 from .errors import InputError
 from .receptors import LIF, ReceptorClass, rectified_input, saturate
 
@@ -79,6 +88,14 @@ CYCLES = 10  # cycles counted
 MAX_SETTLE = 20
 SECTIONS = 6  # amplitudes per lane and round of the threshold search
 NEWTON = 12  # iterations for a crossing time (monotone, quadratic: round-off in ~6)
+# The Saal et al. 2017 afferents (discrete time at 5 kHz), simulated on a sinusoid:
+SAAL_SETTLE = 0.25  # s discarded: 3 of the slowest fit's τ (409 samples = 82 ms), > the
+#                     post-spike current (38 ms); the filters (>= 74 Hz) settle within it
+SAAL_COUNT = 0.1  # s counted at least, and at least SAAL_CYCLES cycles, or one cycle when a
+SAAL_CYCLES = 2  # cycle is longer than the settling time (the neuron forgets the last cycle)
+SAAL_RANGE = (1e-8, 10.0)  # bracket of the model's input amplitude α·a (MPa of TouchSim stress)
+SAAL_BISECTIONS = 11  # geometric: bracket ratio 1e9 -> 1e9^(2^-11) = 1.010 (1 %)
+SAAL_BUDGET = 3e6  # lanes × samples simulated together (memory: ~10 arrays of 24 MB)
 
 
 # --- the stimulus and the current over one cycle ---------------------------------------------
@@ -354,7 +371,9 @@ def _check(frequencies, transfer, static) -> tuple[np.ndarray, np.ndarray, np.nd
 
 def _lanes(cls: ReceptorClass, f, s0):
     """Unique (f, s0) lanes: s0 matters only to a class with a static weight."""
-    uses_static = any(w != 0 for w in cls.lif.weights[:2])
+    weights = (cls.saal.afferents(cls.name).weights[:, :2].ravel() if cls.model == "saal2017"
+               else cls.lif.weights[:2])
+    uses_static = any(w != 0 for w in weights)
     ff, ss = np.meshgrid(f, s0 if uses_static else np.zeros_like(s0), indexing="ij")
     keys = np.stack([ff.ravel(), ss.ravel()], axis=1)
     unique, inverse = np.unique(keys, axis=0, return_inverse=True)
@@ -365,12 +384,17 @@ def vibration_thresholds(cls: ReceptorClass, frequencies, transfer, static, *,
                          cycles: int = CYCLES, samples: int = SAMPLES,
                          rtol: float = 1e-2) -> VibrationThresholds:
     """I0 and I1 of a class at every frequency and site: the stimulus thresholds of the unique
-    (f, s0) lanes, divided by |H| (mm of probe amplitude; inf where |H| = 0)."""
+    (f, s0) lanes, divided by |H| (mm of probe amplitude; inf where |H| = 0). A class with the
+    Saal et al. 2017 model: per site the most sensitive of its fits (`saal_thresholds_stimulus`;
+    `cycles`, `samples`, `rtol` are the LIF's)."""
     f, h, s0 = _check(frequencies, transfer, static)
     lf, ls, back = _lanes(cls, f, s0)
-    a0 = absolute_threshold_stimulus(cls.lif, lf, ls, samples=samples, rtol=rtol)
-    a1 = entrainment_threshold_stimulus(cls.lif, lf, ls, cycles=cycles, samples=samples,
-                                        rtol=rtol, absolute=a0)
+    if cls.model == "saal2017":
+        a0, a1 = saal_thresholds_stimulus(cls, lf, ls)
+    else:
+        a0 = absolute_threshold_stimulus(cls.lif, lf, ls, samples=samples, rtol=rtol)
+        a1 = entrainment_threshold_stimulus(cls.lif, lf, ls, cycles=cycles, samples=samples,
+                                            rtol=rtol, absolute=a0)
     gain = np.abs(h)
     with np.errstate(divide="ignore"):
         return VibrationThresholds(cls.name, cls.unit, f, a0[back] / gain, a1[back] / gain,
@@ -380,12 +404,20 @@ def vibration_thresholds(cls: ReceptorClass, frequencies, transfer, static, *,
 def rate_vs_amplitude(cls: ReceptorClass, frequencies, transfer, static, amplitudes, *,
                       cycles: int = 20, samples: int = SAMPLES) -> np.ndarray:
     """Steady-state firing rate (spikes/s) for probe amplitudes A (mm), shape
-    (n_f, n_sites, n_A): mean spikes per counted cycle × f (resolution f / cycles)."""
+    (n_f, n_sites, n_A): mean spikes per counted cycle × f (resolution f / cycles). For the
+    Saal et al. fits, site k uses fit k mod n (as the time route) and the counted cycles of
+    `saal_cycle_counts` (`cycles`, `samples` unused)."""
     f, h, s0 = _check(frequencies, transfer, static)
     amps = np.atleast_1d(np.asarray(amplitudes, dtype=float))
     ff = np.broadcast_to(f[:, None, None], (len(f), len(s0), len(amps)))
     aa = np.abs(h)[:, :, None] * amps[None, None, :]
     ss = np.broadcast_to(s0[None, :, None], ff.shape)
+    if cls.model == "saal2017":
+        fits = cls.saal.afferents(cls.name)
+        site = np.broadcast_to(np.arange(len(s0))[None, :, None], ff.shape).ravel()
+        total, _ = saal_cycle_counts(fits.take(site % len(fits)), ff.ravel(), aa.ravel(),
+                                     ss.ravel(), cls.saal.input_scale, cls.saal.kappa(cls.name))
+        return (total / _saal_counted(ff.ravel()) * ff.ravel()).reshape(ff.shape)
     counts = cycle_response(cls.lif, ff.ravel(), aa.ravel(), ss.ravel(), cycles=cycles,
                             samples=samples)
     return (counts.mean(axis=1) * ff.ravel()).reshape(ff.shape)
@@ -412,6 +444,103 @@ def rectified_sine_mean(s0, a):
         beta = np.arcsin(np.clip(s0 / a, -1.0, 1.0))
         above = s0 * (0.5 + beta / np.pi) + a * np.cos(beta) / np.pi
     return np.where(a <= s0, s0, above)
+
+
+# --- the Saal et al. 2017 afferents: thresholds by simulation --------------------------------
+
+
+def saal_cycle_counts(aff: Afferents, frequency, a, s0, scale: float, kappa: float):
+    """Spike counts of each lane (one fit, frequency, amplitude a and pressed value s0 of the
+    site quantity per lane) in its counted cycles: (total, fewest per cycle). The site quantity
+    s = s0 + a sin(2π f t) from t = 0, sampled at the model's 5 kHz, mapped to its inputs
+    (`site_inputs`: central differences, as its fits were made); cycles counted after
+    SAAL_SETTLE, max(SAAL_CYCLES, SAAL_COUNT f) of them."""
+    f = np.asarray(frequency, dtype=float)
+    counted = _saal_counted(f)
+    steps = int(math.ceil((SAAL_SETTLE + np.max(counted / f)) * aff.fs)) + 1
+    t = np.arange(steps) / aff.fs
+    s = s0[:, None] + a[:, None] * np.sin(2 * np.pi * f[:, None] * t[None, :])
+    flags = spike_flags(aff, *site_inputs(s, aff.fs, scale, kappa))
+    cycle = np.floor((t[None, :] - SAAL_SETTLE) * f[:, None]).astype(int)
+    inside = (cycle >= 0) & (cycle < counted[:, None])
+    counts = np.zeros((len(f), counted.max()))
+    lane, k = np.nonzero(flags & inside)
+    np.add.at(counts, (lane, cycle[lane, k]), 1)
+    unused = np.arange(counted.max())[None, :] >= counted[:, None]
+    return counts.sum(axis=1), np.where(unused, np.inf, counts).min(axis=1)
+
+
+def _saal_search(aff, f, s0, scale, kappa):
+    """Geometric bisection per lane of the smallest amplitude with a spike in the counted
+    cycles (I0) and with one in each (I1), in the site quantity's units, both in one
+    simulation per round (lanes doubled); inf if SAAL_RANGE's top does not meet the criterion,
+    NaN (both) if its bottom already fires (the pressed value alone fires)."""
+    both = aff.take(np.tile(np.arange(len(aff)), 2))
+    f2, s02 = np.tile(f, 2), np.tile(s0, 2)
+    entrain = np.arange(2 * len(f)) >= len(f)
+    lo = np.full(2 * len(f), SAAL_RANGE[0] / scale)
+    hi = np.full(2 * len(f), SAAL_RANGE[1] / scale)
+
+    def meets(a):
+        total, fewest = saal_cycle_counts(both, f2, a, s02, scale, kappa)
+        return np.where(entrain, fewest >= 1, total > 0)
+
+    top, bottom = meets(hi), meets(lo)
+    for _ in range(SAAL_BISECTIONS):
+        mid = np.sqrt(lo * hi)
+        ok = meets(mid)
+        hi, lo = np.where(ok, mid, hi), np.where(ok, lo, mid)
+    # at rest or not is the I0 criterion's bottom (any spike on s0 alone): a site that fires
+    # on its pressed value has neither threshold (an ongoing discharge the vibration merely
+    # entrains is not an I1), as for the LIF
+    busy = np.tile(bottom[: len(f)], 2)
+    out = np.where(busy, np.nan, np.where(top, hi, np.inf))
+    return out[: len(f)], out[len(f):]
+
+
+def _saal_counted(f) -> np.ndarray:
+    """Cycles counted per lane: SAAL_COUNT seconds' worth, at least SAAL_CYCLES, or one where
+    a period exceeds SAAL_SETTLE (every cycle then starts from a rested neuron)."""
+    least = np.where(1.0 / f > SAAL_SETTLE, 1, SAAL_CYCLES)
+    return np.maximum(least, np.ceil(SAAL_COUNT * f)).astype(int)
+
+
+def _saal_duration(f):
+    """Simulated time per lane (s): SAAL_SETTLE plus the counted cycles."""
+    return SAAL_SETTLE + _saal_counted(f) / f
+
+
+def _saal_chunks(f) -> list[np.ndarray]:
+    """Lanes grouped by frequency (highest first) so that lanes × samples of each group stays
+    within SAAL_BUDGET: a group is simulated as long as its slowest lane needs."""
+    order = np.argsort(-f, kind="stable")
+    chunks, start = [], 0
+    for k in range(1, len(order) + 1):
+        if k == len(order) or 2 * (k + 1 - start) * _saal_duration(f[order[k]]) * 5000 > (
+                SAAL_BUDGET):
+            chunks.append(order[start:k])
+            start = k
+    return chunks
+
+
+def saal_thresholds_stimulus(cls: ReceptorClass, frequency, s0) -> tuple[np.ndarray, ...]:
+    """(I0, I1) per lane (f, s0) in the site quantity's units for a class with the Saal et al.
+    2017 model: the most sensitive of its fits (min over them; NaN if every fit fires on s0
+    alone). Lanes × fits simulated together, grouped by frequency (`_saal_chunks`)."""
+    f, s0 = (np.asarray(x, dtype=float).ravel() for x in np.broadcast_arrays(frequency, s0))
+    fits = cls.saal.afferents(cls.name)
+    n = len(fits)
+    lane = np.repeat(np.arange(len(f)), n)
+    fit = np.tile(np.arange(n), len(f))
+    out = np.full((2, len(lane)), np.nan)
+    for chunk in _saal_chunks(f[lane]):
+        out[:, chunk] = _saal_search(fits.take(fit[chunk]), f[lane[chunk]], s0[lane[chunk]],
+                                     cls.saal.input_scale, cls.saal.kappa(cls.name))
+    out = out.reshape(2, len(f), n)
+    with np.errstate(all="ignore"):
+        best = np.where(np.all(np.isnan(out), axis=2), np.nan,
+                        np.nanmin(np.where(np.isnan(out), np.inf, out), axis=2))
+    return best[0], best[1]
 
 
 # --- published afferent tuning, to overlay -------------------------------------------------

@@ -281,10 +281,12 @@ def _check_thresholds(out, sites):
     whose neuron does not read the pressed value (RA, PC: rate and acceleration weights only),
     since the probe threshold scales exactly as 1/|H| (vibrotactile.py)."""
     import csv
+    import json
 
-    from fingertip_dolfinx.receptors import load_receptors
+    from fingertip_dolfinx.receptors import receptors_from_dict
 
-    population = load_receptors()
+    # the set the run used (the scene's: "calibrated", whose SA1 reads −σ22, not SED)
+    population = receptors_from_dict(json.loads((out / "receptors.json").read_text()))
     rows = list(csv.DictReader((out / "thresholds.csv").open()))
     assert len(rows) == len(sites) and (out / "thresholds.png").exists()
     pressed = list(csv.DictReader((out / "receptors.csv").open()))

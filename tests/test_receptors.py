@@ -331,3 +331,42 @@ def test_the_afferents_respond_to_the_ramp(one_point):
     assert r.mean_rate[ra][0] > 0
     for spikes in r.spikes:
         assert np.all((spikes > 0) & (spikes <= r.time[-1]))
+
+
+# --- the Saal et al. 2017 afferents as a class's model ----------------------------------------
+
+
+def test_the_calibrated_set_reads_back_and_names_its_model():
+    population = load_receptors("calibrated")
+    assert {c.model for c in population.classes} == {"saal2017"}
+    assert receptors_from_dict(population.record()) == population
+    assert len(population["RA"].saal.afferents("RA")) == 9
+
+
+@pytest.mark.parametrize("base, cls, change, named", [
+    ("default", "PC", {"model": "hodgkin-huxley"}, "PC.model"),
+    ("default", "PC", {"model": "saal2017"}, "[PC.saal2017]"),
+    ("calibrated", "RA", {"saal2017": {"input_scale": 1.0, "fits": [9]}}, "RA.saal2017.fits"),
+    ("calibrated", "SA1", {"saal2017": {"input_scale": -1.0}}, "SA1.saal2017.input_scale"),
+    ("calibrated", "PC", {"model": "lif"}, "[PC.lif]"),
+])
+def test_bad_model_choices_are_named(base, cls, change, named):
+    data = load_receptors(base).record()
+    data[cls].update(change)
+    with pytest.raises(InputError) as error:
+        receptors_from_dict(data)
+    assert named in str(error.value)
+
+
+def test_the_fitted_afferents_respond_to_the_ramp(one_point):
+    """The time route with TouchSim's fits on the same run (the calibrated set reads −σ22):
+    the SA1 under the bar fires as the press deepens (a static weight; measured: 4 spikes, 13.6
+    spikes/s over the last step, 0.71-1 s), the far SA1 sites stay silent; the slow ramp (1 mm
+    in 1 s; TouchSim's own ramps take 50 ms) leaves the RA and PC fits, driven by the rate of
+    the stress, silent (RA under the bar: α κ ṡ ≈ 0.013 per sample, v ≈ 0.1 < 1)."""
+    r = afferent_responses(one_point, "calibrated")
+    sa1 = r.of("SA1")
+    centre = sa1 & (r.x == 0.0)
+    assert r.mean_rate[centre][0] > 1 and r.rate[-1, centre][0] > 5
+    assert np.all(r.mean_rate[sa1 & (r.x != 0.0)] == 0)
+    assert np.all(r.mean_rate[~sa1] == 0)
