@@ -39,9 +39,9 @@ tissue (J within the margin of its solid fraction φ0, at a quadrature point or 
 physical limit, not a numerical one: the run stops at once with a `CompactionError` (also when
 Newton's residual turns non-finite twice in a step at an iterate whose pores closed, and the
 accepted states, extrapolated, reach the limit within the step; otherwise that iterate overshot
-and the step is cut). Times in the messages carry the digits that tell t and t + Δt apart. Forms are
-compiled once: time, step size, loads and multistep weights are `fem.Constant`s the problem
-updates in place.
+and the step is cut). Times in the messages carry the digits that tell t and t + Δt apart.
+Forms are compiled once: time, step size, loads and multistep weights are `fem.Constant`s the
+problem updates in place.
 
 `TimeStepper.run` tells the story of a step: begin it (its size limited by the load's period),
 settle it (attempts that move the loads, predict, solve and, under error control, estimate,
