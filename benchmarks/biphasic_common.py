@@ -26,7 +26,7 @@ errors. The limits (undrained start, drained end) are homogeneous states that P2
 exactly: their errors are in the table, against the closed forms.
 
 `--asked TOL ...` (`tolerance_table`): per tolerance asked, the tolerance-driven time control
-(`solver.tolerance_steps` for its time share, checked by `solver.verify_time`), its estimate and
+(`stepping.tolerance_steps` for its time share, checked by `stepping.verify_time`), its estimate and
 what it delivered at the output times (`output_times`) against a tight reference of the same
 mesh (`TightReference`), beside local error control alone at rtol = TOL
 (docs/benchmarks/tolerance.md).
@@ -43,7 +43,7 @@ import numpy as np
 
 import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
 from fingertip_dolfinx import materials as mat
-from fingertip_dolfinx.solver import (
+from fingertip_dolfinx.stepping import (
     TIME_SHARE,
     StepOptions,
     time_estimates,
@@ -333,7 +333,7 @@ def sampled(problem: PlatenRelaxation, n: int, grading: float, options: StepOpti
 
 class TightReference:
     """The force and core pressure at `output_times` from the stepper at TIGHT_RTOL, with its
-    own error estimated from a run 10 times looser (`solver.time_estimates`)."""
+    own error estimated from a run 10 times looser (`stepping.time_estimates`)."""
 
     def __init__(self, problem: PlatenRelaxation, n: int, grading: float, prefix: str,
                  first: float = AFTER):
@@ -361,8 +361,8 @@ class TightReference:
 
 def asked_vs_delivered(problem: PlatenRelaxation, ref: TightReference, n: int, grading: float,
                        tol: float, prefix: str) -> dict:
-    """The tolerance-driven control (`solver.tolerance_steps` for the time share of `tol`,
-    checked and tightened by `solver.verify_time`) on the force and core pressure at the
+    """The tolerance-driven control (`stepping.tolerance_steps` for the time share of `tol`,
+    checked and tightened by `stepping.verify_time`) on the force and core pressure at the
     output times, each relative to its history's peak; the last run against the reference."""
     h, times = problem.history, ref.times
     base = StepOptions(dt_initial=h.ramp_time / 16, dt_min=1e-9 * h.ramp_time,

@@ -10,7 +10,7 @@ because the ramp is fast: the drained top takes the whole travel in a layer ~sqr
 thick, and at 2 % the ν = 0 foam's top approaches compaction.
 
 `--asked TOL [TOL ...]`: per tolerance asked, the tolerance-driven time control
-(`solver.tolerance_steps`, `solver.verify_time`), what it estimated and what it delivered
+(`stepping.tolerance_steps`, `stepping.verify_time`), what it estimated and what it delivered
 against a tight reference, beside local error control alone at rtol = TOL; with `--issue`, on
 the column of the issue that asked for it (k0 = 10 mm⁴/(N·s), 20 % in 100 s, held to 3000 s).
 

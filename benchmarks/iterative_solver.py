@@ -23,7 +23,7 @@ from fingertip_dolfinx.errors import ConvergenceError
 from fingertip_dolfinx.mesh import build_mesh
 from fingertip_dolfinx.problem import FingertipProblem
 from fingertip_dolfinx.scene import load_scene
-from fingertip_dolfinx.solver import StepOptions, TimeStepper
+from fingertip_dolfinx.stepping import StepOptions, TimeStepper
 
 STEPS = StepOptions(dt_initial=0.05, dt_min=0.05, dt_max=0.05, max_cuts=0)
 

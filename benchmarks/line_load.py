@@ -17,7 +17,7 @@ Why the ratio stays near 6 on the line load (measured, 2026-11-23; counts from P
   triangular solve costs 1/9 of a factorisation, so 36 (or 9) factorisations instead of 179
   saved nothing (stepping +2 % and +16 %). A kept Jacobian (chord steps) pays only in the
   quadratic phase: steps.jacobian_reuse = 0.02 (the scene's) -17 factorisations; looser
-  thresholds lengthen the ramp (solver.JacobianReuse).
+  thresholds lengthen the ramp (stepping.JacobianReuse).
 - Line searches: basic (full steps) 37 steps, 3 cuts, 180 factorisations; l2 160
   factorisations but 3.3 residuals per iteration: no gain over bt. MUMPS with METIS
   ordering: the same cost per factorisation.

@@ -34,7 +34,7 @@ from fingertip_dolfinx.loading import RampHold
 from fingertip_dolfinx.outputs import read_csv
 from fingertip_dolfinx.runner import run_scene
 from fingertip_dolfinx.scene import load_scene
-from fingertip_dolfinx.solver import StepOptions, TimeStepper
+from fingertip_dolfinx.stepping import StepOptions, TimeStepper
 from fingertip_dolfinx.studies.problems import ConfinedBlock
 
 RAMP = RampHold(0.01, 100.0, 3000.0)

@@ -3,7 +3,7 @@
 A plane-strain fingertip (skin, subcutaneous tissue, bone, nail) pressed by rigid indenters,
 after Wu et al. (2004). The modules follow the physics, each depending only on those before it:
 geometry -> mesh -> kinematics -> materials -> tissues -> contact -> model -> problem ->
-solver -> scene -> runner -> outputs / figures -> studies.
+stepping -> scene -> runner -> outputs / figures -> studies.
 
 The Python API, in the order a study uses it::
 
@@ -57,7 +57,7 @@ _API = {
     "Vibration": "loading",
     # the model, the problem and the solver, for those who build their own runs
     "ModelOptions": "model", "FingertipProblem": "problem",
-    "StepOptions": "solver", "TimeStepper": "solver",
+    "StepOptions": "stepping", "TimeStepper": "stepping",
     # receptor sites and afferent models
     "load_receptors": "receptors", "ReceptorPopulation": "receptors",
     "afferent_responses": "receptors",

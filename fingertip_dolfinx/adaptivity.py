@@ -4,7 +4,7 @@ tolerance.
 
 The tolerance is split (`AdaptOptions.time_share`, 25 %): the mesh must reach tol_space =
 tol (1 − time_share), the time stepping tol_time = tol time_share; the two estimates add.
-Every level runs with the steps of `solver.tolerance_steps(tol_time)` (error-controlled BDF2,
+Every level runs with the steps of `stepping.tolerance_steps(tol_time)` (error-controlled BDF2,
 rtol and atol scaled with it); after the mesh loop, step 5 checks the time error.
 
 The loop (`adapt`), level k = 0, 1, ...:
@@ -55,7 +55,7 @@ The loop (`adapt`), level k = 0, 1, ...:
    30 % per mm, as the scene's own fields do. The map is handed to gmsh as a size callback
    that combines with the scene's fields by min (`mesh.build_mesh(..., size=)`).
 
-5. **Check the time error** (`check_time`, `solver.verify_time`): the finest mesh again with
+5. **Check the time error** (`check_time`, `stepping.verify_time`): the finest mesh again with
    rtol and atol 4 times tighter (and more, up to `max_time_runs` runs), the time error of
    every key output estimated from the difference, E = 1.25 |f_k - f_(k-1)| / (r^a - 1) / |f|
    with a = 1/2 (the error's exponent in the tolerance, measured); the tightest run is the
@@ -87,7 +87,7 @@ from mpi4py import MPI
 from .errors import ConvergenceError, InputError
 from .mesh import SIZE_GROWTH, SizeMap
 from .post import depth_curve
-from .solver import TIME_SHARE, tolerance_steps, verify_time
+from .stepping.tolerance import TIME_SHARE, tolerance_steps, verify_time
 from .studies.keys import DEFLECTION_POINTS, KEY_OUTPUTS, KEYS, check_scene, key_outputs, read_key
 
 #: |x| (mm) of the farthest surface deflection among the key outputs.
@@ -119,7 +119,7 @@ class AdaptOptions:
     weight_length: decay length (mm) of the indicator's weight outside the regions; floor:
     the smallest size (mm; default `default_floor`);
     max_dofs: stop before a level would exceed this many unknowns (estimated);
-    time_share: the share of tol that goes to the time error (`solver.TIME_SHARE`; the mesh
+    time_share: the share of tol that goes to the time error (`stepping.TIME_SHARE`; the mesh
     gets tol (1 - time_share)), 0 to leave the scene's step control alone and refine the mesh
     to the whole tol (the time error then neither controlled nor estimated);
     max_time_runs: runs of the finest mesh at most in the time check (the first is its level).
@@ -487,7 +487,7 @@ def _with_size_map(scene, path: Path):
 
 
 def timed_scene(scene, options: AdaptOptions):
-    """The scene with the steps of the time budget (`solver.tolerance_steps`), or as it is
+    """The scene with the steps of the time budget (`stepping.tolerance_steps`), or as it is
     (time_share 0). A dynamic scene has no error estimate for its scheme: refused."""
     if options.time_share == 0:
         return scene
@@ -502,7 +502,7 @@ def timed_scene(scene, options: AdaptOptions):
 
 
 def check_time(scene, final: dict, out: Path, options: AdaptOptions, say, comm) -> dict:
-    """The time check of the finest mesh (`solver.verify_time`): its level's run against runs
+    """The time check of the finest mesh (`stepping.verify_time`): its level's run against runs
     with tolerances 4 (and more) times tighter, until every key output's estimated time error
     is within options.time_tol. Run i > 0 goes to `out/<level>-time-<i>/`; the last is the
     answer published. Returns adapt.json's `time` table."""
@@ -534,7 +534,7 @@ def check_time(scene, final: dict, out: Path, options: AdaptOptions, say, comm) 
             "runs": check["runs"], "published": str(dirs[-1]),
             "method": ("key outputs of the finest mesh at steps.rtol and steps.atol divided by "
                        "4 (and more): E = 1.25 |f_fine - f_coarse| / (r^a - 1) / |f_fine|, "
-                       "a = 1/2 (solver.verify_time)")}
+                       "a = 1/2 (stepping.verify_time)")}
 
 
 # The loop's levels, its time check and its failures in one place; to be split into a level

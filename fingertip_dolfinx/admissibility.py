@@ -8,7 +8,7 @@ Newton can converge to a state no tissue can reach:
   and the mixture are undefined. The margin (0.02 by default) is the band in which the
   approach to that limit is recognised. Compaction is physical: the fluid cannot leave fast
   enough for the load, and no smaller step changes that; the time stepper stops at once
-  (`solver`, `errors.CompactionError`).
+  (`stepping`, `errors.CompactionError`).
 
 J is evaluated at the quadrature points of the volume integrals (where the residual sees it)
 and at the cells' vertices (the nodes, where a P2 displacement's J is usually most extreme:

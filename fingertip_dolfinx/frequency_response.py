@@ -54,14 +54,8 @@ from ufl.algorithms import expand_derivatives
 
 from .errors import InputError
 from .figures import plain_log_ticks
-from .harmonic import (
-    HarmonicOptions,
-    HarmonicSolver,
-    complex_modulus,
-    linearise,
-    parse_frequencies,
-    press,
-)
+from .harmonic import HarmonicSolver, complex_modulus, linearise, press
+from .harmonic_options import HarmonicOptions, parse_frequencies
 from .kinematics import principal_log_strains
 from .loading import RampHold, Vibration
 from .mesh import build_mesh
@@ -192,7 +186,7 @@ def run_frequency_response(scene: Scene, out: str | Path, *, frequencies=None,
                            state: str | None = None, progress: bool = True,
                            comm: MPI.Comm = MPI.COMM_WORLD) -> dict:
     """The frequency route of `scene` into `out` (see the module's docstring); returns the
-    summary. `frequencies` (a harmonic.parse_frequencies spec) and `state` override the
+    summary. `frequencies` (a harmonic_options.parse_frequencies spec) and `state` override the
     scene's `[harmonic]` table."""
     options = scene.harmonic or HarmonicOptions()
     if frequencies is not None:

@@ -66,12 +66,14 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from .errors import InputError
+from .harmonic_options import STATES
 from .loading import RampHold
 from .materials import Prony
 from .poroelasticity import consolidation_time, darcy_flux
-from .solver import BACKWARD_EULER, StepOptions, TimeStepper
+from .stepping.controllers import BACKWARD_EULER
+from .stepping.options import StepOptions
+from .stepping.stepper import TimeStepper
 
-STATES = ("relaxed", "held")
 #: The LU solve of the real block form.
 HARMONIC_PETSC_OPTIONS = {"ksp_type": "preonly", "pc_type": "lu",
                           "pc_factor_mat_solver_type": "mumps",
@@ -81,53 +83,6 @@ HARMONIC_PETSC_OPTIONS = {"ksp_type": "preonly", "pc_type": "lu",
                           "mat_mumps_icntl_14": 100}
 #: "relaxed": steps of RELAXATION_FACTOR × the longest relaxation time (`relaxation_steps`).
 RELAXATION_FACTOR = 100.0
-
-
-def parse_frequencies(spec, where: str = "harmonic.frequencies") -> tuple[float, ...]:
-    """Frequencies (Hz) from "start:stop:count" (log-spaced, both ends included), a comma list
-    "10,100,250", or a list of numbers."""
-    fix = 'give "start:stop:count" (log-spaced, e.g. "1:1000:40"), "10,100,250" or a list.'
-    try:
-        if isinstance(spec, str) and ":" in spec:
-            start, stop, count = spec.split(":")
-            start, stop, n = float(start), float(stop), int(count)
-            if not (0 < start < stop and n >= 2):
-                raise InputError(where, f"{spec!r}: need 0 < start < stop and count >= 2.", fix)
-            values = np.geomspace(start, stop, n)
-        elif isinstance(spec, str):
-            values = [float(x) for x in spec.split(",") if x.strip()]
-        elif isinstance(spec, int | float):
-            values = [float(spec)]
-        else:
-            values = [float(x) for x in spec]
-    except (TypeError, ValueError):
-        raise InputError(where, f"cannot read {spec!r}.", fix) from None
-    values = tuple(float(f) for f in values)
-    if not values or not all(f > 0 and math.isfinite(f) for f in values):
-        raise InputError(where, f"{spec!r} gives {values}: frequencies are positive (Hz).", fix)
-    return values
-
-
-@dataclass(frozen=True)
-class HarmonicOptions:
-    """A scene's `[harmonic]` table: the frequencies (a `parse_frequencies` spec; empty: the
-    protocol's own) and the pressed state ("held": the protocol's pre-indentation, ramp and
-    hold, as a time-domain run would vibrate from; "relaxed": the long-term equilibrium)."""
-
-    #: Hz: a list, or "start:stop:count" (log-spaced); empty: the protocol's own.
-    frequencies: tuple[float, ...] | str = ()
-    #: The pressed state: "held" or "relaxed".
-    state: str = "held"
-
-    def __post_init__(self):
-        spec = self.frequencies
-        if not (isinstance(spec, tuple | list) and len(spec) == 0):
-            object.__setattr__(self, "frequencies", parse_frequencies(spec))
-        else:
-            object.__setattr__(self, "frequencies", ())
-        if self.state not in STATES:
-            raise InputError("harmonic.state", f"unknown pressed state {self.state!r}.",
-                             f"use one of {STATES}.")
 
 
 def complex_modulus(prony: Prony | None, omega: float) -> complex:

@@ -12,7 +12,7 @@ with P_r the first Piola–Kirchhoff stress of region r's law (model.py: P_skin 
 history of the hyperfoam stress; P_sub the drained hyperfoam stress of the solid; bone and nail
 St Venant–Kirchhoff; rigid regions 0) and p_c the Nitsche contact pressure of the rigid
 indenters on the pulp (contact.py). Undrained, the mass balance is ∫_sub (J − J_n) q dX = 0.
-A BDF2 step (solver.StepOptions.scheme) replaces the biphasic J − J_n by a₀ J + a₁ J_n +
+A BDF2 step (stepping.StepOptions.scheme) replaces the biphasic J − J_n by a₀ J + a₁ J_n +
 a₂ J_{n−1} (`rate_weights`, `u_nm1`); every other part is quasi-static or keeps its own exact
 recursion (the skin's QLV history).
 Every boundary not in contact is traction-free; the subcutaneous boundary is impermeable (zero
@@ -88,7 +88,7 @@ class FingertipProblem:
     """Forms, unknowns, supports and loads of the fingertip under rigid indenters.
 
     The indenters move together as one rigid holder along the protocol. Implements the
-    `solver.Steppable` protocol: `TimeStepper` advances it in time.
+    `stepping.Steppable` protocol: `TimeStepper` advances it in time.
 
     Parameters
     ----------
@@ -126,7 +126,7 @@ class FingertipProblem:
                               metadata={"quadrature_degree": options.quadrature_degree})
         self.ds = ufl.Measure("ds", domain=msh, subdomain_data=fmesh.facet_tags)
         self.gdim = msh.geometry.dim
-        #: Compiler flags of the Newton forms (solver.TimeStepper passes them on): None, the
+        #: Compiler flags of the Newton forms (stepping.TimeStepper passes them on): None, the
         #: defaults, in 2D. The 3D hyperfoam's Jacobian (three principal stretches with their
         #: series branches, per term and region) is a very long C function, which gcc compiles
         #: far faster at -O1 than at -O2 (times: docs/benchmarks/measurements.md).
@@ -136,7 +136,7 @@ class FingertipProblem:
         self.u_n = fem.Function(self.V, name="displacement_n")
         #: u at t_{n−1} and the weights (a₀, a₁, a₂) of J_{n+1}, J_n, J_{n−1} in Δt·dJ/dt of
         #: the biphasic mass balance: backward Euler (1, −1, 0) until the time stepper sets
-        #: BDF2's (solver.bdf2_weights). A Constant: switching schemes never recompiles.
+        #: BDF2's (stepping.bdf2_weights). A Constant: switching schemes never recompiles.
         self.u_nm1 = fem.Function(self.V, name="displacement_nm1")
         self.rate_weights = fem.Constant(msh, np.array([1.0, -1.0, 0.0]))
         self.F = deformation_gradient(self.u)

@@ -65,7 +65,7 @@ from .problem import FingertipProblem
 from .receptors import ReceptorRecorder, load_receptors
 from .result import Result
 from .scene import Scene, scene_record
-from .solver import TimeStepper
+from .stepping.stepper import TimeStepper
 
 
 class NoContactWarning(UserWarning):

@@ -24,12 +24,11 @@ from .datafiles import builtin_dir, find, read_toml
 from .errors import InputError
 from .geometry import Section, load_section
 from .geometry3d import Fingertip3D, load_fingertip3d, section_dimension
-from .harmonic import HarmonicOptions
+from .harmonic_options import HarmonicOptions
 from .indenters import Indenter, load_indenter, make_indenter
-from .linear_solvers import check_linear
 from .loading import KINDS, LoadHistory, history_from_dict
 from .model import ModelOptions
-from .solver import StepOptions
+from .stepping.options import StepOptions, check_linear
 from .tissues import DEFAULT_SET, WU2004, Tissues, load_materials
 from .validation import check_keys, positive
 
@@ -211,7 +210,7 @@ class Scene:
     #: (harmonic.py); None: the scene has no such table.
     harmonic: HarmonicOptions | None = None
     #: `[solver] linear`: the linear solver inside Newton, "direct" (MUMPS) or "iterative"
-    #: (Krylov with a field-split multigrid preconditioner; linear_solvers.py).
+    #: (Krylov with a field-split multigrid preconditioner; stepping/linear.py).
     linear: str = "direct"
     #: The overrides applied to the scene file (`key=value`, as given): the figures' titles
     #: say what was changed (`title`).

@@ -209,7 +209,7 @@ def test_a_tolerance_governs_the_time_steps_too():
     grows steps by Newton's effort, whatever the error). A dynamic scene's scheme has no error
     estimate: refused, with the way to adapt the mesh alone; time_share 0 keeps the scene's
     steps."""
-    from fingertip_dolfinx.solver import ATOL_PER_RTOL, RTOL_PER_BUDGET
+    from fingertip_dolfinx.stepping import ATOL_PER_RTOL, RTOL_PER_BUDGET
 
     options = ad.AdaptOptions(tol=0.02)
     assert options.space_tol + options.time_tol == pytest.approx(0.02)

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from fingertip_dolfinx import materials as mat
-from fingertip_dolfinx.solver import StepOptions
+from fingertip_dolfinx.stepping import StepOptions
 from fingertip_dolfinx.studies.problems import (
     ConfinedRelaxation,
     UnconfinedRelaxation,

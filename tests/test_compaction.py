@@ -23,7 +23,7 @@ from fingertip_dolfinx import materials as mat
 from fingertip_dolfinx.admissibility import Admissibility, Compaction, quadrature_points
 from fingertip_dolfinx.errors import CompactionError, ConvergenceError, InputError
 from fingertip_dolfinx.loading import RampHold
-from fingertip_dolfinx.solver import StepOptions, TimeStepper, _distinct, crosses
+from fingertip_dolfinx.stepping import StepOptions, TimeStepper, crosses, distinct
 from fingertip_dolfinx.studies.problems import ConfinedBlock
 
 HM = mat.HOLMES_MOW_SUBCUTANEOUS
@@ -136,8 +136,8 @@ def test_J_below_phi0_only_at_a_node_is_caught():
 def test_failure_times_are_printed_with_the_digits_that_tell_them_apart():
     """The issue's 'from t = 36.4231 s to t = 36.4231 s': a step of 1e-5 s at t = 36.4231 s
     that Newton cannot finish (one iteration allowed, tolerances unreachable)."""
-    assert _distinct(36.4231, 36.4231 + 1e-5) == ("36.4231", "36.42311")
-    assert _distinct(0.5, 0.75) == ("0.5", "0.75")
+    assert distinct(36.4231, 36.4231 + 1e-5) == ("36.4231", "36.42311")
+    assert distinct(0.5, 0.75) == ("0.5", "0.75")
     column = ConfinedBlock(1, 2, RAMP, tissue=mat.SUBCUTANEOUS_BIPHASIC, width=0.1,
                            drained_top=True, top_displacement=True)
     stepper = TimeStepper(

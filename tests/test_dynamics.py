@@ -22,7 +22,7 @@ from fingertip_dolfinx.harmonic import complex_modulus
 from fingertip_dolfinx.inertia import wbz_parameters
 from fingertip_dolfinx.loading import Vibration
 from fingertip_dolfinx.scene import load_scene
-from fingertip_dolfinx.solver import StepOptions, TimeStepper
+from fingertip_dolfinx.stepping import StepOptions, TimeStepper
 from fingertip_dolfinx.studies.problems import (
     ConfinedBlock,
     driven_layer,

@@ -1,4 +1,4 @@
-"""The linear solvers inside Newton (linear_solvers.py): the iterative route (FGMRES, Schur field
+"""The linear solvers inside Newton (stepping/linear.py): the iterative route (FGMRES, Schur field
 split, GAMG with the rigid-body near null space) against MUMPS on a coarse fingertip; its
 Krylov iterations under refinement; 1 against 2 ranks; the near null space itself in 2D and 3D.
 The 4x finer fingertip comparison is benchmarks/iterative_solver.py (too slow for a test)."""
@@ -15,12 +15,12 @@ from petsc4py import PETSc
 
 from fingertip_dolfinx.errors import InputError
 from fingertip_dolfinx.harmonic import press
-from fingertip_dolfinx.linear_solvers import LinearSolver, rigid_body_modes
 from fingertip_dolfinx.loading import RampHold
 from fingertip_dolfinx.mesh import build_mesh
 from fingertip_dolfinx.problem import FingertipProblem
 from fingertip_dolfinx.scene import load_scene, scene_record
-from fingertip_dolfinx.solver import StepOptions, TimeStepper
+from fingertip_dolfinx.stepping import StepOptions, TimeStepper
+from fingertip_dolfinx.stepping.linear import LinearSolver, rigid_body_modes
 
 #: A coarse 1pt fingertip (biphasic subcutaneous tissue: the (u, p) split), bone and nail rigid:
 #: the iterative route's recommended model (elastic bone: see the benchmark).

@@ -30,7 +30,7 @@ from fingertip_dolfinx.model import (
 )
 from fingertip_dolfinx.problem import FingertipProblem
 from fingertip_dolfinx.scene import load_scene
-from fingertip_dolfinx.solver import DEFAULT_PETSC_OPTIONS, TimeStepper
+from fingertip_dolfinx.stepping import DEFAULT_PETSC_OPTIONS, TimeStepper
 from fingertip_dolfinx.tissues import REGIONS, WU2004, load_materials, tissues_from_dict
 
 COARSE = ["section.mesh.min_size=0.2", "section.mesh.max_size=1.0", "section.mesh.bone_size=2.0"]

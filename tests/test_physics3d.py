@@ -29,7 +29,7 @@ from fingertip_dolfinx.indenters import Bar, Sphere
 from fingertip_dolfinx.loading import RampHold
 from fingertip_dolfinx.model import ModelOptions
 from fingertip_dolfinx.problem import FingertipProblem
-from fingertip_dolfinx.solver import DEFAULT_PETSC_OPTIONS, StepOptions, TimeStepper
+from fingertip_dolfinx.stepping import DEFAULT_PETSC_OPTIONS, StepOptions, TimeStepper
 from fingertip_dolfinx.studies.problems import (
     ConfinedBlock,
     HertzSphere,

@@ -10,7 +10,7 @@ from mpi4py import MPI
 from fingertip_dolfinx import materials as mat
 from fingertip_dolfinx import poroelasticity as poro
 from fingertip_dolfinx.errors import CompactionError
-from fingertip_dolfinx.solver import StepOptions, TimeStepper
+from fingertip_dolfinx.stepping import StepOptions, TimeStepper
 from fingertip_dolfinx.studies.problems import ConfinedBlock, confined_drained_stress
 
 HM = mat.HOLMES_MOW_SUBCUTANEOUS

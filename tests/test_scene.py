@@ -14,7 +14,7 @@ from fingertip_dolfinx.outputs import DEPTH_COLUMNS, HISTORY_COLUMNS, SURFACE_CO
 from fingertip_dolfinx.runner import Run as Recorder
 from fingertip_dolfinx.runner import run_scene
 from fingertip_dolfinx.scene import load_scene
-from fingertip_dolfinx.solver import DEFAULT_PETSC_OPTIONS
+from fingertip_dolfinx.stepping import DEFAULT_PETSC_OPTIONS
 
 COARSE = ["section.mesh.min_size=0.2", "section.mesh.max_size=1.0", "section.mesh.bone_size=2.0",
           "output.profile_points=121"]

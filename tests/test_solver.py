@@ -12,7 +12,7 @@ from mpi4py import MPI
 
 from fingertip_dolfinx import materials as mat
 from fingertip_dolfinx.loading import RampHold
-from fingertip_dolfinx.solver import StepOptions, TimeStepper
+from fingertip_dolfinx.stepping import StepOptions, TimeStepper
 from fingertip_dolfinx.studies.problems import (
     ConfinedBlock,
     Terzaghi,

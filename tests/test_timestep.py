@@ -19,11 +19,11 @@ from mpi4py import MPI
 from fingertip_dolfinx import materials as mat
 from fingertip_dolfinx.kinematics import deformation_gradient
 from fingertip_dolfinx.loading import RampHold
-from fingertip_dolfinx.solver import (
+from fingertip_dolfinx.stepping import (
     StepOptions,
     TimeStepper,
-    _lagrange,
     bdf2_weights,
+    lagrange,
     milne_factor,
 )
 from fingertip_dolfinx.studies.problems import ConfinedBlock, Terzaghi, prony_ramp_integral
@@ -65,7 +65,7 @@ def test_milne_estimate_is_the_local_error(order):
             a0, a1, a2 = bdf2_weights(h / dts[1])
             corrector = (h * dx(t_new) - a1 * x(times[-1]) - a2 * x(times[-2])) / a0
         points = [(s, [np.array(x(s))]) for s in times[-(order + 1):]]
-        predictor = _lagrange(points, t_new)[0]
+        predictor = lagrange(points, t_new)[0]
         estimate = milne_factor(order, dts[: order + 1]) * (corrector - predictor)
         assert estimate / (corrector - x(t_new)) == pytest.approx(1.0, abs=close)
     assert milne_factor(1, [1.0, 1.0]) == pytest.approx(1 / 3)
@@ -376,7 +376,7 @@ def test_time_estimate_bounds_errors_that_fall_with_the_tolerance(exponent):
     error-per-step control (2/3) and of tolerance proportionality (1): the estimate of the
     tighter of two runs 4x apart, with the assumed a = 1/2, bounds its true error (by the
     safety factor 1.25 at a = 1/2 exactly)."""
-    from fingertip_dolfinx.solver import time_estimates
+    from fingertip_dolfinx.stepping import time_estimates
 
     def f(tol):
         return {"x": 1.0 + 0.3 * tol**exponent, "y": 2.0 - 0.5 * tol**exponent}
@@ -395,7 +395,7 @@ def test_time_check_tightens_until_within_budget_and_survives_a_failed_run():
     the check ends unconverged with the last
     finished run as the answer and the failure recorded, instead of losing everything."""
     from fingertip_dolfinx.errors import ConvergenceError
-    from fingertip_dolfinx.solver import verify_time
+    from fingertip_dolfinx.stepping import verify_time
 
     def run(options, i):
         return {"f": 1.0 + 0.3 * math.sqrt(options.rtol)}
@@ -426,7 +426,7 @@ def test_a_tolerance_asked_of_the_outputs_is_delivered():
     1e-5, Newton to 1e-15 N/mm (7e-5 of the peaks from one at 1e-6, against 2.5e-3 asked).
     Local error control alone does not do this: on the issue's column (benchmarks/
     biphasic_confined.py --issue) rtol 1e-4 ends 6.5e-3 off in the pore pressure."""
-    from fingertip_dolfinx.solver import TIME_SHARE, tolerance_steps, verify_time
+    from fingertip_dolfinx.stepping import TIME_SHARE, tolerance_steps, verify_time
 
     exact = _column_outputs(StepOptions(control="error", scheme="bdf2", rtol=1e-5, atol=1e-11,
                                         dt_initial=1e-2, dt_min=1e-9, dt_max=1000.0),

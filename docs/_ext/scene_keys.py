@@ -22,20 +22,20 @@ def tables():
     from fingertip_dolfinx import (
         geometry,
         geometry3d,
-        harmonic,
+        harmonic_options,
         indenters,
         loading,
         model,
         scene,
-        solver,
+        stepping,
     )
 
     rows = [
         ("[model]", model.ModelOptions, ""),
-        ("[steps]", solver.StepOptions, ""),
+        ("[steps]", stepping.StepOptions, ""),
         ("[output]", scene.Outputs, ""),
         ("[accuracy]", scene.Accuracy, ""),
-        ("[harmonic]", harmonic.HarmonicOptions, ""),
+        ("[harmonic]", harmonic_options.HarmonicOptions, ""),
         ("[section.mesh]", geometry.MeshOptions, ""),
         ("[section] (3D: `dimension = 3`)", geometry3d.Fingertip3D,
          "`section` is the 2D cross-section carried along z; `name` is set from the file."),
@@ -152,7 +152,7 @@ API_GROUPS = {
     "Materials": ("tissues", "materials"),
     "Geometry, meshes, indenters and protocols": ("geometry", "mesh", "geometry3d", "mesh3d",
                                                    "indenters", "loading"),
-    "Model, problem and solver": ("model", "problem", "solver"),
+    "Model, problem and solver": ("model", "problem", "stepping"),
     "Receptors and afferents": ("receptors",),
     "Errors": ("errors",),
 }

@@ -8,7 +8,7 @@ s, MPa; plane strain, so forces are per unit thickness (N/mm).
 - `ConfinedBlock`: a block on rollers loaded on its top (a traction strip or a displacement):
   biphasic (consolidation, creep, undrained strip load), viscoelastic (a relaxing strip) or
   hyperelastic (or, `small_strain`, exactly linear); with a `density`, dynamic (inertia.py:
-  free vibration, a harmonically driven layer). A `Steppable` for `solver.TimeStepper`.
+  free vibration, a harmonically driven layer). A `Steppable` for `stepping.TimeStepper`.
 - `Terzaghi`: the drained-top consolidation column and its exact pore pressure and settlement,
   after any time t (Terzaghi's series) and after one backward-Euler step.
 - `Hertz` and `HertzBlock`: a rigid cylinder pressed into a linear-elastic half block with
@@ -51,7 +51,8 @@ from ..kinematics import deformation_gradient
 from ..loading import RampHold
 from ..mesh import CELL_TAGS, FACET_TAGS, FingertipMesh
 from ..poroelasticity import biphasic_residuals
-from ..solver import DEFAULT_PETSC_OPTIONS, StepOptions, TimeStepper
+from ..stepping.options import DEFAULT_PETSC_OPTIONS, StepOptions
+from ..stepping.stepper import TimeStepper
 from ..viscoelasticity import QuasiLinearViscoelasticity
 
 #: Quadrature degree of the block's volume terms: the hyperfoam stress is not polynomial.
@@ -192,7 +193,7 @@ def graded(s: np.ndarray, ratio: float) -> np.ndarray:
 
 
 def newton_problem(F, u, bcs, prefix: str, **options) -> NonlinearProblem:
-    """A NonlinearProblem with the time stepper's SNES set-up (`solver.DEFAULT_PETSC_OPTIONS`:
+    """A NonlinearProblem with the time stepper's SNES set-up (`stepping.DEFAULT_PETSC_OPTIONS`:
     Newton with line search, direct LU) and `options` on top, e.g. snes_rtol=1e-12.
     `prefix` must be unique per problem (PETSc options are global)."""
     return NonlinearProblem(F, u, bcs=bcs, petsc_options_prefix=prefix,

@@ -44,7 +44,9 @@ from ..drucker import check_state, drucker_check
 from ..errors import CompactionError, ConvergenceError, FingertipError, MaterialInstabilityError
 from ..kinematics import deformation_gradient, eigen_sum
 from ..loading import PiecewiseLinear
-from ..solver import _SNES_REASONS, StepOptions, TimeStepper
+from ..stepping.diagnosis import SNES_REASONS
+from ..stepping.options import StepOptions
+from ..stepping.stepper import TimeStepper
 from .problems import (
     ConfinedBlock,
     Hertz,
@@ -67,7 +69,7 @@ def _prefix(name: str) -> str:
 
 
 def _reason(code: int) -> str:
-    return _SNES_REASONS.get(code, str(code))
+    return SNES_REASONS.get(code, str(code))
 
 
 def _one_step(block: ConfinedBlock, dt: float, prefix: str, petsc=None) -> tuple[bool, str, int]:

@@ -36,7 +36,8 @@ failed with both rigid; 0.01 is kept. So the iterative route is meant for rigid 
 quadrature degree 2): 59.6, 57.4, 61.1 and 97.0 FGMRES iterations per Newton step at h = 0.8,
 0.57, 0.4 and 0.2 mm (25k to 486k dofs: 1.63x over h/4, most of it from 0.4 to 0.2 mm).
 
-Both are chosen by scene data (`[solver] linear = "direct" | "iterative"`); any PETSc option
+Both are chosen by scene data (`[solver] linear = "direct" | "iterative"`, checked by
+`options.check_linear`, which needs no PETSc); any PETSc option
 given in `[solver]` overrides the configuration's (under the stepper's prefix:
 `fieldsplit_u_pc_gamg_threshold = 0.02`, `ksp_rtol = 1e-10`, ...).
 
@@ -55,9 +56,7 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .errors import InputError
-
-LINEAR = ("direct", "iterative")
+from .options import check_linear
 
 #: LU of the whole Jacobian (MUMPS): robust for contact and for the undrained saddle point.
 DIRECT_OPTIONS = {
@@ -121,13 +120,6 @@ def options(linear: str, pressure: bool) -> dict:
     """The PETSc options of the linear solver `linear` ("direct" or "iterative")."""
     check_linear(linear)
     return dict(DIRECT_OPTIONS) if linear == "direct" else iterative_options(pressure)
-
-
-def check_linear(linear, where: str = "solver.linear") -> str:
-    if linear not in LINEAR:
-        raise InputError(where, f"{linear!r} is not a linear solver.",
-                         f"use one of {', '.join(repr(k) for k in LINEAR)}.")
-    return linear
 
 
 def rigid_body_modes(V: fem.FunctionSpace) -> PETSc.NullSpace:

@@ -1,0 +1,146 @@
+"""The step options as data: what a scene's `[steps]` table and `[solver] linear` accept.
+
+Data only, with no PETSc or DOLFINx import, so that a scene (scene.py) validates its tables
+without loading the solvers. `StepOptions` chooses the integrator of the biphasic rate
+(`scheme`: backward Euler, variable-step BDF2, or generalised-α for dynamics) and how the steps
+are sized (`control`: by Newton's effort or by the local error estimate; controllers.py);
+`StepReport` is what the stepper (stepper.py) says of each accepted step.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+
+from ..errors import InputError
+
+#: Newton with a backtracking line search and a direct solve (MUMPS): robust for contact and
+#: for the saddle-point structure of the undrained tissue. Users override any of these.
+DEFAULT_PETSC_OPTIONS = {
+    "snes_type": "newtonls",
+    "snes_linesearch_type": "bt",
+    "snes_rtol": 1e-9,
+    "snes_atol": 1e-10,  # N/mm: the bone (17 GPa) puts round-off near 1e-12
+    "snes_stol": 0.0,
+    "snes_max_it": 15,  # a failing attempt should fail fast: the step is cut and retried
+    "ksp_type": "preonly",
+    "pc_type": "lu",
+    "pc_factor_mat_solver_type": "mumps",
+}
+
+CONTROLS = ("iterations", "error")
+SCHEMES = ("backward-euler", "bdf2", "generalized-alpha")
+#: Schemes whose biphasic rate is BDF2 (generalised-α keeps the mass balance second order).
+SECOND_ORDER_RATE = ("bdf2", "generalized-alpha")
+#: Variable-step BDF2 is zero-stable for step ratios ω = Δt_n/Δt_{n−1} < 1 + √2.
+BDF2_GROWTH_LIMIT = 1 + math.sqrt(2)
+#: The linear solvers inside Newton (linear.py): MUMPS LU, or Krylov with a field split.
+LINEAR = ("direct", "iterative")
+
+
+def check_linear(linear, where: str = "solver.linear") -> str:
+    """`linear` if it names a linear solver (LINEAR), else an InputError naming `where`."""
+    if linear not in LINEAR:
+        raise InputError(where, f"{linear!r} is not a linear solver.",
+                         f"use one of {', '.join(repr(k) for k in LINEAR)}.")
+    return linear
+
+
+@dataclass
+class StepOptions:
+    """Adaptive time-step control (times in s)."""
+
+    dt_initial: float = 0.1  # s: the first step
+    dt_min: float = 1e-5  # s: a step cut below this stops the run
+    dt_max: float = 10.0  # s: the largest step
+    growth: float = 1.5  # factor after an easy step
+    cut: float = 0.5  # factor after a failed attempt
+    max_cuts: int = 8  # failed attempts in a row before giving up
+    easy_iterations: int = 6  # a step with at most this many Newton iterations is easy
+    #: Start Newton from the linear extrapolation of the last two states (not across a kink
+    #: of the load history): in a ramp this removes most of the iterations. Measured on the
+    #: line load: without it, 81 steps of ~2 ms (7 iterations each) reached only 0.22 mm of
+    #: the 1 mm ramp; a quadratic extrapolation through three states overshoots the growing
+    #: contact zone: 41 steps, 209 iterations against the linear one's 33 and 164.
+    extrapolate: bool = True
+    #: Keep the Jacobian, and so its LU factorisation, for the next Newton iteration of a step
+    #: when the last one cut the residual norm by at least this factor (0: never keep it; a
+    #: chord step is then nearly as good as Newton's: the iterate is in the quadratic phase).
+    #: Measured on the line load (benchmarks/line_load.py): see JacobianReuse.
+    jacobian_reuse: float = 0.0
+    #: "iterations": grow by `growth` after easy steps. "error": steps chosen by their
+    #: estimated local time-integration error (rtol, atol); `growth` is then the largest
+    #: factor from one step to the next.
+    control: str = "iterations"
+    #: "backward-euler" (first order) or "bdf2" (variable-step BDF2, second order) for the
+    #: biphasic mass balance; "generalized-alpha" for dynamics (a model with inertia): the
+    #: Wood–Bossak–Zienkiewicz method for the inertia (inertia.py), BDF2 for the mass balance.
+    scheme: str = "backward-euler"
+    #: "generalized-alpha" (dynamics): the spectral radius ρ∞ ∈ [0, 1] at Δt → ∞ of the
+    #: Wood–Bossak–Zienkiewicz method (1: trapezoidal rule, no numerical dissipation; 0.8
+    #: damps the unresolved mesh modes that contact and kinks of the load excite while
+    #: keeping the resolved ones: a relative period error and damping ~(ωΔt)²).
+    rho_inf: float = 0.8
+    #: Steps per shortest period of a periodic load (a history with `period`, after its
+    #: `onset`): the largest step there is period/steps_per_period.
+    steps_per_period: int = 40
+    #: Error control: per unknown field, max |local error| <= atol + rtol * (largest |value|
+    #: the field has reached). atol in the unknowns' units, mm (displacement) and MPa
+    #: (pressure): the floor that keeps the first steps from rest, where every field is still
+    #: tiny, from asking more than Newton's own accuracy (its residual tolerance, snes_atol).
+    rtol: float = 1e-3
+    atol: float = 1e-6  # error control: the absolute floor (mm, MPa), see rtol
+    safety: float = 0.9  # the next step aims at safety × the tolerance
+
+    def __post_init__(self):
+        if not 0 < self.dt_min <= self.dt_initial <= self.dt_max:
+            raise ValueError("need 0 < dt_min <= dt_initial <= dt_max")
+        if not (self.growth >= 1 and 0 < self.cut < 1 and self.max_cuts >= 0):
+            raise ValueError("need growth >= 1, 0 < cut < 1, max_cuts >= 0")
+        if self.control not in CONTROLS:
+            raise ValueError(f"control must be one of {CONTROLS}, got {self.control!r}")
+        if self.scheme not in SCHEMES:
+            raise ValueError(f"scheme must be one of {SCHEMES}, got {self.scheme!r}")
+        if not (self.rtol >= 0 and self.atol >= 0 and self.rtol + self.atol > 0
+                and 0 < self.safety <= 1):
+            raise ValueError("need rtol >= 0, atol >= 0, rtol + atol > 0, 0 < safety <= 1")
+        if not 0.0 <= self.jacobian_reuse < 1.0:
+            raise ValueError(f"need 0 <= jacobian_reuse < 1, got {self.jacobian_reuse}")
+        if not 0.0 <= self.rho_inf <= 1.0:
+            raise ValueError(f"need 0 <= rho_inf <= 1, got {self.rho_inf}")
+        if isinstance(self.steps_per_period, bool) or not (
+                isinstance(self.steps_per_period, int) and self.steps_per_period >= 4):
+            raise ValueError(f"steps_per_period must be an integer >= 4 (a step per quarter "
+                             f"period at least), got {self.steps_per_period!r}")
+        if self.scheme == "generalized-alpha" and self.control == "error":
+            raise ValueError("control = 'error' has no error estimate for the generalized-alpha "
+                             "scheme: use control = 'iterations' (steps_per_period sets the "
+                             "accuracy)")
+        if self.scheme in SECOND_ORDER_RATE and not self.growth < BDF2_GROWTH_LIMIT:
+            raise ValueError(f"BDF2 is unstable for step ratios above 1 + √2: need growth < "
+                             f"{BDF2_GROWTH_LIMIT:.4f}, got {self.growth}")
+
+
+@dataclass
+class StepReport:
+    step: int
+    time: float
+    dt: float
+    load: float
+    newton_iterations: int
+    cuts: int
+    wall_time_s: float
+    #: Krylov iterations of the Newton iterations counted in `newton_iterations` (one per
+    #: Newton iteration with the direct solver; attempts that were cut count in neither).
+    linear_iterations: int = 0
+    diagnostics: dict[str, float] = field(default_factory=dict)
+    next_dt: float = math.nan  # the step size planned next (a checkpoint stores it)
+    #: Error control: the accepted step's error estimate over the tolerance (<= 1), and the
+    #: attempts redone because it was above.
+    error: float = math.nan
+    rejected: int = 0
+
+    def row(self) -> dict[str, float]:
+        row = asdict(self)
+        row.update(row.pop("diagnostics"))
+        return row

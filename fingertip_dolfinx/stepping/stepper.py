@@ -1,0 +1,664 @@
+"""Implicit time stepping with PETSc SNES: adaptive steps, cuts on failure, clear errors.
+
+Every step solves the full nonlinear system R(u_{n+1}; u_n, Δt) = 0 with Newton's method.
+The model's one time derivative, dJ/dt in the biphasic mass balance, is integrated by
+backward Euler (first order, the default) or variable-step BDF2 (second order;
+`StepOptions.scheme`): the problem's `rate_weights` (a₀, a₁, a₂) make Δt·dJ/dt ≈ a₀ J_{n+1}
++ a₁ J_n + a₂ J_{n−1}. BDF2's first step, and the first after every kink of the load, are
+backward Euler. The skin's QLV history keeps its own recursion (exact for a stress linear over
+the step: second order for a smooth one); elasticity and contact are quasi-static.
+
+Dynamics (a problem with `inertia`, model option `inertia`): the scheme "generalized-alpha"
+integrates the inertia by the Wood–Bossak–Zienkiewicz method (generalised-α with α_f = 0,
+inertia.py; second order, numerical dissipation `rho_inf` ∈ [0, 1], 1 the trapezoidal rule)
+and the biphasic mass balance by BDF2 as above; with α_f = 0 the internal forces, QLV,
+pore pressure and contact stay at t_{n+1}. A dynamic step must resolve the load's shortest
+period: when the history has a `period` (loading.Vibration), Δt ≤ period/`steps_per_period`
+from its `onset` on (before it, in the quasi-static press and hold, the steps grow as usual:
+the inertia is on but negligible there, ρ d̈ ~ 0 on a ramp, and ρ∞ < 1 damps the start-up
+transients of the Newmark velocity at the ramp's kink by ρ∞ per large step).
+
+Step sizes (`StepOptions.control`; the policies are controllers.py's objects):
+
+- "iterations" (the default): the step grows ×`growth` while Newton converges easily
+  (≤ `easy_iterations`), whatever the error, up to `dt_max`.
+- "error": each step's local time-integration error is estimated and kept below the
+  tolerance: for every unknown field f, max |e_f| ≤ atol + rtol·(the largest |f| reached so
+  far). e is Milne's estimate K/(K − K_p)·(x − x_pred) from the difference between the
+  corrector x and the polynomial predictor x_pred through the last states (linear for
+  backward Euler, quadratic for BDF2; K, K_p their error constants at the actual step
+  ratios). The first step, and the first after a kink of the load, where no smooth history
+  exists, is checked by step doubling (one step against two half steps; the halves are
+  kept). A step whose error exceeds the tolerance (err > 1) is redone; the next step is
+  Δt·min(growth, max(0.2, safety·err^(−1/(k+1)))), k the order.
+
+In both, steps land exactly on every breakpoint of the load and output time, and a step is cut
+when it fails (divergence, NaN, inverted elements); after `max_cuts` cuts in a row the run
+stops with a message that says when, where and why (diagnosis.py). Compaction of a porous
+tissue (J within the margin of its solid fraction φ0, at a quadrature point or a node) is a
+physical limit, not a numerical one: the run stops at once with a `CompactionError` (also when
+Newton's residual turns non-finite twice in a step at an iterate whose pores closed, and the
+accepted states, extrapolated, reach the limit within the step; otherwise that iterate overshot
+and the step is cut). Times in the messages carry the digits that tell t and t + Δt apart.
+Forms are compiled once: time, step size, loads and multistep weights are `fem.Constant`s the
+problem updates in place.
+
+`TimeStepper.run` tells the story of a step: begin it (its size limited by the load's period),
+settle it (attempts that move the loads, predict, solve and, under error control, estimate,
+until one is accepted: a rejected attempt is redone shorter, a failed one cut), accept it
+(report it), ask the step-size policy for the next, and advance.
+"""
+
+from __future__ import annotations
+
+import math
+import time as wallclock
+import warnings
+from collections import deque
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Protocol
+
+import dolfinx.fem.petsc
+import numpy as np
+from dolfinx import fem
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from ..contact import NonConservativeContactWarning
+from ..errors import FingertipError
+from ..loading import step_times
+from .controllers import (
+    BACKWARD_EULER,
+    Outcome,
+    PeriodLimit,
+    bdf2_weights,
+    controller,
+    lagrange,
+    milne_factor,
+)
+from .diagnosis import (
+    compacted,
+    compaction_error,
+    crosses,
+    cuts_error,
+    error_stall_error,
+    newton_failure,
+)
+from .linear import DIRECT_OPTIONS, LinearSolver
+from .options import DEFAULT_PETSC_OPTIONS, SECOND_ORDER_RATE, StepOptions, StepReport
+
+
+class Steppable(Protocol):
+    """What the time stepper needs from a problem (problem.FingertipProblem is one)."""
+
+    residuals: list  # UFL forms, one per unknown
+    unknowns: list[fem.Function]
+    bcs: list[fem.DirichletBC]
+    entity_maps: list | None
+    dt: fem.Constant
+
+    def set_time(self, t: float) -> None:
+        """Move the loads (indenter positions, boundary values) to time t."""
+
+    def accept(self) -> None:
+        """Take the converged state as the new history (u_n, internal variables)."""
+
+    def restore(self) -> None:
+        """Return the unknowns to the last accepted state (after a failed attempt)."""
+
+    def inadmissible(self) -> str | None:
+        """Why the converged state cannot be accepted (inverted elements, ...), or None."""
+
+    # Optional: `compacted(margin=None, nodes=True)`, the porous tissue's lowest J if within
+    # `margin` of its solid fraction (admissibility.Compacted: `message(when)`), else None. The
+    # stepper stops on it with a CompactionError; `residual_hotspot(residual)`, where the
+    # residual of a failed attempt is largest.
+
+    def diagnostics(self) -> dict[str, float]:
+        """Per-step quantities of the converged state, before `accept`: force, min J, ..."""
+
+    # Optional. `rate_weights`: a fem.Constant (a₀, a₁, a₂) that the residual uses as
+    # Δt·dJ/dt ≈ a₀ J_{n+1} + a₁ J_n + a₂ J_{n−1} (J_{n−1} from the state before u_n, which
+    # `accept` keeps); the stepper sets it every step (a problem without a rate has none).
+    # `state_arrays()` (live arrays of the whole state, history included) and
+    # `mark_accepted()`: error control saves and restores the state around a doubled step.
+
+
+class TimeStepper:
+    """Drives a `Steppable` problem along a load history with adaptive implicit steps."""
+
+    def __init__(
+        self,
+        problem: Steppable,
+        options: StepOptions | None = None,
+        petsc_options: dict | None = None,
+        prefix: str = "fingertip_",
+        linear: str = "direct",
+    ):
+        self.problem = problem
+        self.options = options or StepOptions()
+        #: The linear solver inside Newton (linear.py): "direct" (MUMPS) or "iterative".
+        self.linear = LinearSolver(linear, problem)
+        newton = {k: v for k, v in DEFAULT_PETSC_OPTIONS.items() if k not in DIRECT_OPTIONS}
+        opts = {**newton, **self.linear.options, **(petsc_options or {})}
+        # One NonlinearProblem for the whole run: its forms are compiled here, once.
+        self.nonlinear = dolfinx.fem.petsc.NonlinearProblem(
+            problem.residuals,
+            problem.unknowns,
+            bcs=problem.bcs,
+            entity_maps=problem.entity_maps,
+            kind="mpi",
+            petsc_options_prefix=prefix,
+            petsc_options=opts,
+            jit_options=getattr(problem, "jit_options", None),
+        )
+        self.snes = self.nonlinear.solver
+        self.linear.attach(self.nonlinear, prefix, opts)
+        #: Krylov iterations of all solves so far (1 per Newton step with the direct solver).
+        self.linear_iterations, self._last_linear = 0, 0
+        self._watch_residual()
+        self._set_dynamics()
+        #: Jacobian (and factorisation) reuse within a step (StepOptions.jacobian_reuse).
+        reuse = self.options.jacobian_reuse
+        self.reuse = JacobianReuse(self.snes, reuse) if reuse > 0 else None
+
+    def _set_dynamics(self) -> None:
+        """Give a problem with inertia the scheme's ρ∞; refuse a quasi-static scheme for it."""
+        inertia = getattr(self.problem, "inertia", None)
+        if inertia is None:
+            return
+        if self.options.scheme != "generalized-alpha":
+            raise FingertipError(
+                f"the model has inertia but steps.scheme is {self.options.scheme!r}, which "
+                "integrates no acceleration. Fix: steps.scheme = \"generalized-alpha\" (or "
+                "model.inertia = false for a quasi-static run).")
+        inertia.set_dissipation(self.options.rho_inf)
+        contact = getattr(self.problem, "contact", None)
+        if contact is not None and not contact.conservative:
+            warnings.warn(
+                f"a dynamic run with {contact.method} contact (theta = {contact.theta}), whose "
+                "force derives from no potential: it can feed the contact zone's fast modes "
+                "(on the coarse fingertip at 250 Hz an oscillation near the steps' Nyquist "
+                "frequency grew until Newton failed at steps of 50 µs; generalised-α's "
+                "dissipation hides it at larger steps). Fix: model.contact = \"penalty\" with "
+                "model.contact_gamma0 = 100 (conservative; penetration ~ pressure/γ), see "
+                "contact.py.",
+                NonConservativeContactWarning, stacklevel=3)
+
+    def close(self) -> None:
+        """Destroy the solver's PETSc objects now, on every rank together.
+
+        Their destruction is collective (MUMPS broadcasts as it frees its factors). Left to
+        Python's garbage collector, it happens at different moments on different ranks (rank 0
+        alone draws the figures, which triggers a collection) and `mpiexec` runs hang at exit.
+        """
+        nonlinear = self.nonlinear
+        self.linear.release()
+        for obj in (nonlinear.solver, nonlinear.A, nonlinear.P_mat, nonlinear.b, nonlinear.x):
+            if obj is not None:
+                obj.destroy()
+
+    def _watch_residual(self) -> None:
+        """Wrap the residual so that, where it turns non-finite at a Newton iterate (not at the
+        initial guess, the predictor), the problem's compaction finding there is kept: while
+        the residual is assembled the unknowns hold that iterate; after a failed solve they
+        hold SNES's last accepted iterate instead."""
+        self._evaluations, self._closed = 0, None
+        check = getattr(self.problem, "compacted", None)
+        if check is None:
+            return
+        vector, (function, args, kargs) = self.snes.getFunction()
+
+        def residual(snes, x, f):
+            function(snes, x, f, *args, **kargs)
+            self._evaluations += 1
+            if self._evaluations > 1 and self._closed is None and not _finite(f):
+                self._closed = check(0.0, False)  # J ≤ φ0 at a quadrature point?
+
+        self.snes.setFunction(residual, vector)
+
+    def solve_once(self) -> tuple[int, int]:
+        """One Newton solve from the current state; returns (converged reason, iterations)."""
+        self._evaluations, self._closed = 0, None
+        if self.reuse is not None:
+            self.reuse.start()
+        with np.errstate(all="ignore"):
+            self.nonlinear.solve()
+        self._last_linear = self.snes.getLinearSolveIterations()
+        self.linear_iterations += self._last_linear
+        return self.snes.getConvergedReason(), self.snes.getIterationNumber()
+
+    def run(
+        self,
+        history: Callable[[float], float],
+        end_time: float,
+        *,
+        start_time: float = 0.0,
+        breakpoints: Sequence[float] = (),
+        on_step: Callable[[StepReport], None] | None = None,
+        previous: tuple[float, list[np.ndarray]] | None = None,
+    ) -> list[StepReport]:
+        """Step from `start_time` to `end_time`, landing exactly on every breakpoint.
+
+        `history(t)` is the load reported per step (e.g. indenter displacement); the problem's
+        own `set_time` applies it. `on_step` is called after every accepted step, so results
+        are written as they come and survive a later failure. `previous` is the accepted state
+        (time, unknowns' arrays) one step before `start_time`, for the predictor on a restart.
+        """
+        self._control = controller(self.options)  # the options may change between runs
+        line = _Timeline.start(self.problem, history, end_time, start_time, breakpoints,
+                               previous)
+        self._peaks = [_max_abs(f) for f in self.problem.unknowns]
+        limit = PeriodLimit(history, self.options.steps_per_period)
+        dt, reports = self.options.dt_initial, []
+        while not line.finished():
+            step = self._begin(line, limit(line.t, dt))
+            self._settle(line, step)  # predict, solve, estimate; reject or cut until accepted
+            report, state = self._accept(line, step, number=len(reports) + 1)
+            dt = report.next_dt = self._control.next_dt(step.outcome())
+            if self._control.estimates_error:
+                self._peaks = [max(a, _max_abs(f))
+                               for a, f in zip(self._peaks, self.problem.unknowns)]
+            line.advance(state, step.middle)
+            reports.append(report)
+            if on_step is not None:
+                on_step(report)
+            if not math.isfinite(dt) or dt <= 0:
+                raise FingertipError(f"time step became {dt} at t = {line.t}")
+        return reports
+
+    # --- one step: its attempts, until one is accepted -----------------------------------------
+    def _begin(self, line: _Timeline, dt: float) -> _Step:
+        """A step from `line.t` of (at most) `dt`; under error control the first step after a
+        kink saves the whole state, for its step doubling."""
+        restart = self._control.estimates_error and len(line.since) == 1
+        return _Step(t=line.t, dt=dt, started=wallclock.perf_counter(),
+                     linear_before=self.linear_iterations,
+                     saved=_save(self.problem) if restart else None)
+
+    def _settle(self, line: _Timeline, step: _Step) -> None:
+        """Attempt the step until an attempt is accepted: a converged, admissible state, under
+        error control also within the tolerance. A rejected attempt is redone shorter, a failed
+        one cut; both raise when the step can shrink no further."""
+        while True:
+            self._attempt(line, step)
+            if step.reason > 0 and not step.why:
+                if not self._control.estimates_error or self._estimate(line, step) <= 1:
+                    return
+                self._reject(line, step)
+            else:
+                self._fail(line, step)
+
+    def _attempt(self, line: _Timeline, step: _Step) -> None:
+        """Move the loads to the attempt's end, predict the unknowns there and solve."""
+        problem, opts = self.problem, self.options
+        step.t_new = line.lands(step.t, step.dt)
+        step.t_first = step.t_new if step.t_first is None else step.t_first
+        problem.dt.value = step.t_new - step.t
+        problem.set_time(step.t_new)
+        step.plan = self._prepare(line.since, line.own, step.t_new)
+        if self._control.estimates_error:
+            if opts.extrapolate and step.plan.predictor is not None:
+                _assign(problem.unknowns, step.plan.predictor)
+        elif opts.extrapolate and len(line.states) == 2 and not _is_mark(step.t, line.marks):
+            _extrapolate(problem.unknowns, line.states, step.t_new)
+        step.reason, step.iterations = self.solve_once()
+        step.why = (problem.inadmissible() or "").rstrip(".") if step.reason > 0 else ""
+
+    def _estimate(self, line: _Timeline, step: _Step) -> float:
+        """The converged attempt's error over the tolerance: by step doubling after a kink (the
+        halves are kept if they pass), else by Milne's device."""
+        if step.saved is not None:
+            step.error, step.middle, more = self._double(step.t, step.t_new, step.saved,
+                                                         line.since[-1][1])
+            step.iterations += more
+        else:
+            step.error, step.middle = self._norm(step.plan), None
+        return step.error
+
+    def _reject(self, line: _Timeline, step: _Step) -> None:
+        """Redo an attempt whose error is over the tolerance with a shorter step."""
+        self.problem.restore()
+        step.rejected += 1
+        step.extra_iterations += step.iterations
+        step.dt = self._control.reject(step.error, step.plan.order, step.t, step.t_new,
+                                       lambda dt: line.lands(step.t, dt))
+        if step.dt < self.options.dt_min:
+            self.problem.set_time(step.t)
+            raise error_stall_error(step.t, step.t_new, step.error, self.options.dt_min)
+
+    def _fail(self, line: _Timeline, step: _Step) -> None:
+        """A failed attempt: stop on compaction, else cut the step (and stop after too many
+        cuts, or below dt_min)."""
+        problem = self.problem
+        found = self._compaction(line, step)
+        problem.restore()
+        if found is not None:
+            problem.set_time(step.t)
+            raise compaction_error(problem, found, step.t, step.t_new, iterate=step.reason <= 0)
+        step.cuts += 1
+        step.cut_linear += self._last_linear  # uncounted, like the attempt's Newton iterations
+        step.dt = self._control.cut(step.t_new - step.t)
+        if step.cuts > self.options.max_cuts or step.dt < self.options.dt_min:
+            problem.set_time(step.t)
+            raise cuts_error(step.t, step.t_new, (line.history(step.t), line.history(step.t_new)),
+                             step.cuts, step.why, step.closed_iterates)
+
+    def _compaction(self, line: _Timeline, step: _Step):
+        """The compaction a failed attempt reached (admissibility.Compacted), or None; for a
+        Newton failure, also why it failed (`step.why`).
+
+        A converged but inadmissible state has reached the limit if it is compacted. A Newton
+        failure has if the residual turned non-finite at an iterate whose pores closed (J ≤ φ0
+        at a quadrature point) for the second time in the step, with the accepted states heading
+        there within it: once may be an overshoot. Iterates of large ramp steps of the
+        undrained line load closed pores at J = 0.39 while every accepted state had J = 1:
+        Newton's overshoot, cut."""
+        problem = self.problem
+        if step.reason > 0:
+            return compacted(problem)
+        hotspot = getattr(problem, "residual_hotspot", None)
+        where = None if hotspot is None else hotspot(self.snes.getFunction()[0])
+        step.why = newton_failure(step.reason, where)
+        step.closed_iterates += self._closed is not None
+        if step.closed_iterates > 1 and self._heading_for(line.states, step.t_first,
+                                                           self._closed.limit):
+            return self._closed
+        return None
+
+    def _accept(self, line: _Timeline, step: _Step, number: int
+                ) -> tuple[StepReport, tuple[float, list[np.ndarray]]]:
+        """Take the attempt's state as the new history; its report and the state (time,
+        unknowns' arrays)."""
+        problem = self.problem
+        # Diagnostics first: accepting advances the history, after which the stress forms
+        # describe the start of the next step, not the state just solved.
+        diagnostics = problem.diagnostics()
+        problem.accept()
+        state = (step.t_new, [f.x.array.copy() for f in problem.unknowns])
+        report = StepReport(
+            step=number,
+            time=step.t_new,
+            dt=step.t_new - step.t,
+            load=line.history(step.t_new),
+            newton_iterations=step.iterations + step.extra_iterations,
+            cuts=step.cuts,
+            wall_time_s=wallclock.perf_counter() - step.started,
+            linear_iterations=self.linear_iterations - step.linear_before - step.cut_linear,
+            diagnostics=diagnostics,
+            error=step.error,
+            rejected=step.rejected,
+        )
+        return report, state
+
+    def _heading_for(self, states: deque, t_reach: float, limit: float) -> bool:
+        """Whether the accepted states head for J = `limit` by `t_reach`: the lowest J of the
+        last two accepted states (`states`: (time, unknowns' arrays)), extrapolated linearly."""
+        if len(states) < 2:
+            return False  # the first step: nothing accepted is heading anywhere yet
+        unknowns = self.problem.unknowns
+        keep = [f.x.array.copy() for f in unknowns]
+        lows = []
+        for _, arrays in states:
+            _assign(unknowns, arrays)
+            found = compacted(self.problem, math.inf)  # the lowest J, wherever it is
+            lows.append(math.inf if found is None else found.J)
+        _assign(unknowns, keep)
+        (t0, _), (t1, _) = states
+        return crosses(t0, lows[0], t1, lows[1], t_reach, limit)
+
+    def _prepare(self, since: deque, own: int, t_new: float) -> _Plan:
+        """Set the multistep weights of the step to `t_new` (BDF2 once the problem holds a
+        u_{n−1} since the last kink, else backward Euler) and, under error control, plan its
+        error estimate: the predictor through the last states and Milne's factor."""
+        opts, problem = self.options, self.problem
+        times = [s[0] for s in since]
+        dts = [t_new - times[-1], *np.diff(times)[::-1]]  # Δt_n, Δt_{n−1}, ...
+        needed = 3 if opts.control == "error" else 2
+        bdf2 = opts.scheme in SECOND_ORDER_RATE and own >= 1 and len(since) >= needed
+        weights = getattr(problem, "rate_weights", None)
+        if weights is not None:
+            weights.value[:] = bdf2_weights(dts[0] / dts[1]) if bdf2 else BACKWARD_EULER
+        if opts.control != "error" or len(since) == 1:
+            return _Plan(order=1)
+        order = 2 if bdf2 else 1
+        points = list(since)[-(order + 1):]
+        return _Plan(order=order, predictor=lagrange(points, t_new),
+                     factor=milne_factor(order, dts[: order + 1]))
+
+    def _error_of(self, differences: list[np.ndarray], factor: float = 1.0) -> float:
+        """max over the unknown fields f of max|factor·d_f| / (atol + rtol·(largest |f|)),
+        over every rank (owned dofs)."""
+        opts, worst = self.options, 0.0
+        for f, d, peak in zip(self.problem.unknowns, differences, self._peaks):
+            owned = _owned(f)
+            local = float(np.max(np.abs(d[:owned]), initial=0.0))
+            scale = max(peak, _max_abs(f))
+            comm = f.function_space.mesh.comm
+            e = comm.allreduce(local, op=MPI.MAX) * abs(factor) / (opts.atol + opts.rtol * scale)
+            worst = max(worst, e if math.isfinite(e) else math.inf)
+        return worst
+
+    def _norm(self, plan: _Plan) -> float:
+        """The error of the converged step: Milne's factor × (corrector − predictor)."""
+        differences = [f.x.array - x for f, x in zip(self.problem.unknowns, plan.predictor)]
+        return self._error_of(differences, plan.factor)
+
+    def _double(self, t: float, t_new: float, saved: dict, start: list[np.ndarray]
+                ) -> tuple[float, tuple | None, int]:
+        """Step doubling for a step without a smooth history (the first, or the first after a
+        kink): the unknowns hold one backward-Euler step t → t_new; redo it as two half steps
+        from the state `saved` at t and compare. Returns the error of the halves (which are
+        kept: the state at t_new, the history advanced over the first half), the state at the
+        midpoint, and the Newton iterations. A failed or rejected pair restores `saved`."""
+        problem = self.problem
+        full = [f.x.array.copy() for f in problem.unknowns]
+        _restore(problem, saved)
+        t_mid = 0.5 * (t + t_new)
+        problem.dt.value = t_new - t_mid
+        middle, iterations = None, 0
+        for target, guess in ((t_mid, [0.5 * (a + b) for a, b in zip(start, full)]),
+                              (t_new, full)):
+            problem.set_time(target)
+            if self.options.extrapolate:
+                _assign(problem.unknowns, guess)
+            reason, its = self.solve_once()
+            iterations += its
+            if reason <= 0 or problem.inadmissible():
+                _restore(problem, saved)
+                return math.inf, None, iterations
+            if middle is None:
+                middle = (t_mid, [f.x.array.copy() for f in problem.unknowns])
+                problem.accept()
+        err = self._error_of([f.x.array - x for f, x in zip(problem.unknowns, full)])
+        if err > 1:
+            _restore(problem, saved)
+            return err, None, iterations
+        return err, middle, iterations
+
+
+class JacobianReuse:
+    """Keep the assembled Jacobian, and with it the LU factorisation, while Newton contracts.
+
+    A Newton iteration costs a residual, a Jacobian assembly, an LU factorisation and a solve;
+    one with the previous Jacobian (a chord iteration) costs a residual and a pair of
+    triangular solves (PETSc refactorises only a matrix whose values changed). Within a solve,
+    the Jacobian is kept at an iterate whose residual norm is at most `threshold` times the
+    previous iterate's (Newton is in its quadratic phase: the chord step from there is almost
+    as good), else reassembled; every solve starts with a fresh one. Newton's tolerances are
+    unchanged: only the path to them differs.
+
+    Measured on the line load (benchmarks/line_load.py, 33 steps, 179 factorisations with full
+    Newton, 164 once the first step no longer fails): threshold 0.02 saves 17 factorisations
+    for 5 more (chord) iterations, 0.05 saves 25 for 12 more, forces and SED equal to 1e-7;
+    0.1 keeps Jacobians in the slow, contact-driven phase of the ramp's steps, which then take
+    more iterations, grow less and are cut (43 steps, 168 factorisations, more time). Keeping
+    the Jacobian across steps as well was worse still (0.25: 54 steps and 227 factorisations;
+    0.5: 75 steps). The line-load scene uses 0.02, well clear of that edge.
+    """
+
+    def __init__(self, snes: PETSc.SNES, threshold: float):
+        if not 0 < threshold < 1:
+            raise ValueError(f"the reuse threshold must be in (0, 1), got {threshold}")
+        self.threshold = threshold
+        self.assembled = self.reused = 0
+        self._valid, self._norm = False, None
+        J, P, (assemble, args, kargs) = snes.getJacobian()
+
+        def jacobian(snes, x, J_, P_):
+            norm = snes.getFunctionNorm()
+            if self._valid and (self._norm is None or norm <= self.threshold * self._norm):
+                self.reused += 1
+            else:
+                assemble(snes, x, J_, P_, *args, **(kargs or {}))
+                self.assembled += 1
+                self._valid = True
+            self._norm = norm
+
+        snes.setJacobian(jacobian, J, P)
+
+    def start(self) -> None:
+        """A new solve (a step, or its retry) starts from a fresh Jacobian."""
+        self._valid, self._norm = False, None
+
+
+@dataclass
+class _Timeline:
+    """Where a run is: the times its steps land on (`marks`: the load's breakpoints, the
+    output times, the end), the load's kinks (where the multistep history restarts; output
+    times are no kinks), and the accepted states behind `t`."""
+
+    history: Callable[[float], float]
+    end_time: float
+    marks: list[float]
+    kinks: list[float]
+    t: float
+    #: The last two accepted states (time, unknowns' arrays), for the predictor.
+    states: deque
+    #: The accepted states since the last kink (at most 3), for BDF2 and the error estimate.
+    since: deque
+    #: Steps since the last kink taken in this run, whose u_{n−1} the problem holds.
+    own: int = 0
+
+    @classmethod
+    def start(cls, problem, history, end_time: float, start_time: float,
+              breakpoints: Sequence[float], previous) -> _Timeline:
+        marks = sorted({*getattr(history, "breakpoints", ()), *breakpoints, end_time})
+        kinks = sorted({*getattr(history, "breakpoints", ()), start_time})
+        states = deque([(start_time, [f.x.array.copy() for f in problem.unknowns])], maxlen=2)
+        if previous is not None:
+            states.appendleft(previous)
+        since = deque(states if previous is not None and not _is_mark(start_time, kinks) else
+                      [states[-1]], maxlen=3)
+        return cls(history, end_time, marks, kinks, start_time, states, since)
+
+    def finished(self) -> bool:
+        return not self.t < self.end_time - 1e-12 * max(1.0, self.end_time)
+
+    def lands(self, t: float, dt: float) -> float:
+        """Where a step of at most dt from t ends: on the first mark it reaches, or on one a
+        sliver beyond it (loading.step_times)."""
+        return step_times(self.marks, t, dt, self.end_time)
+
+    def advance(self, state: tuple[float, list[np.ndarray]], middle: tuple | None) -> None:
+        """Move to the accepted `state` (and the `middle` of a doubled step before it)."""
+        self.t = state[0]
+        self.states.append(state)
+        if middle is not None:
+            self.since.append(middle)
+        self.since.append(state)
+        self.own += 1
+        if _is_mark(self.t, self.kinks):
+            self.since, self.own = deque([state], maxlen=3), 0
+
+
+@dataclass
+class _Plan:
+    """How a step's error is estimated: its order, the predictor and Milne's factor (none for
+    a step that has no smooth history: the first, or the first after a kink)."""
+
+    order: int
+    predictor: list[np.ndarray] | None = None
+    factor: float = 1.0
+
+
+@dataclass
+class _Step:
+    """A step from `t` while its attempts run: the size of the next attempt (`dt`), the last
+    attempt (`t_new`, its SNES `reason` and Newton `iterations`, why it failed), and the tally
+    the report gives."""
+
+    t: float
+    dt: float
+    started: float  # wall clock
+    linear_before: int  # the stepper's Krylov iterations before the step
+    saved: dict | None = None  # error control after a kink: the state at t, for step doubling
+    t_new: float = math.nan
+    t_first: float | None = None  # the end of the first attempt
+    plan: _Plan | None = None
+    reason: int = 0
+    iterations: int = 0
+    why: str = ""
+    error: float = math.nan  # error control: the last estimate over the tolerance
+    middle: tuple | None = None  # the midpoint state of an accepted doubled step
+    extra_iterations: int = 0  # Newton iterations of rejected attempts (reported)
+    cuts: int = 0
+    rejected: int = 0
+    cut_linear: int = 0  # Krylov iterations of failed attempts (not reported)
+    closed_iterates: int = 0  # failed attempts whose iterate closed the pores
+
+    def outcome(self) -> Outcome:
+        """The accepted step, as the step-size policy sees it."""
+        return Outcome(taken=self.t_new - self.t, planned=self.dt, iterations=self.iterations,
+                       cuts=self.cuts, error=self.error, order=self.plan.order,
+                       doubled=self.middle is not None)
+
+
+def _is_mark(t: float, marks: Sequence[float]) -> bool:
+    return any(abs(t - m) <= 1e-12 * max(1.0, abs(m)) for m in marks)
+
+
+def _extrapolate(unknowns: list[fem.Function], states: deque, t_new: float) -> None:
+    """Set the unknowns to the linear extrapolation through the last two accepted states."""
+    (t0, old), (t1, last) = states
+    c = (t_new - t1) / (t1 - t0)
+    for f, a, b in zip(unknowns, old, last):
+        f.x.array[:] = b + c * (b - a)
+
+
+def _owned(f: fem.Function) -> int:
+    index_map = f.function_space.dofmap.index_map
+    return index_map.size_local * f.function_space.dofmap.index_map_bs
+
+
+def _max_abs(f: fem.Function) -> float:
+    """max |f| over its owned dofs on every rank."""
+    local = float(np.max(np.abs(f.x.array[: _owned(f)]), initial=0.0))
+    return f.function_space.mesh.comm.allreduce(local, op=MPI.MAX)
+
+
+def _assign(unknowns: list[fem.Function], arrays: list[np.ndarray]) -> None:
+    for f, a in zip(unknowns, arrays):
+        f.x.array[:] = a
+
+
+def _save(problem) -> dict[str, np.ndarray]:
+    """A copy of the whole state (history included): error control's doubled steps need it."""
+    arrays = getattr(problem, "state_arrays", None)
+    if arrays is None:
+        raise FingertipError("error control needs the problem's state_arrays() and "
+                             "mark_accepted() to redo a step: use control = 'iterations'")
+    return {name: a.copy() for name, a in arrays().items()}
+
+
+def _restore(problem, saved: dict[str, np.ndarray]) -> None:
+    for name, a in problem.state_arrays().items():
+        a[:] = saved[name]
+    problem.mark_accepted()
+
+
+def _finite(vector: PETSc.Vec) -> bool:
+    """Every entry of a (parallel) PETSc vector finite, on every rank."""
+    local = bool(np.all(np.isfinite(vector.getArray(readonly=True))))
+    return vector.getComm().tompi4py().allreduce(local, op=MPI.LAND)
