@@ -43,8 +43,10 @@ class Result:
 
     def __repr__(self) -> str:
         s = self.summary
+        unit = self.force_unit
         return (f"Result({str(self.out)!r}: {s.get('scene')}, {s.get('time_steps')} steps, "
-                f"peak force {s.get('peak_force_N_per_mm')} N/mm, converged {s.get('converged')})")
+                f"peak force {s.get('peak_force_' + unit.replace('/', '_per_'))} {unit}, "
+                f"converged {s.get('converged')})")
 
     @cached_property
     def summary(self) -> dict:
@@ -67,9 +69,16 @@ class Result:
         return self.history["time_s"]
 
     @property
+    def force_unit(self) -> str:
+        """'N/mm' for a plane-strain run (per unit thickness), 'N' for a 3D run."""
+        return "N" if "force_N" in self.history else "N/mm"
+
+    @property
     def force(self) -> np.ndarray:
-        """Indenter force per unit thickness (N/mm) at every accepted step."""
-        return self.history["force_N_per_mm"]
+        """Indenter force at every accepted step, in `force_unit`: per unit thickness (N/mm)
+        in 2D; in N in 3D, where a half model's force is its own half (the whole finger's is
+        `summary["mirror_factor"]` times it)."""
+        return self.history["force_" + self.force_unit.replace("/", "_per_")]
 
     @property
     def output_times(self) -> list[float]:

@@ -97,3 +97,16 @@ def test_a_3d_run_gives_a_tetrahedral_grid(tmp_path_factory):
     result = ft.run("probe-3d", out, overrides=SETS_3D, progress=False)
     grid, _ = _check_grid(result, 1.0, VTK_TETRA)
     assert grid["log_strain"].shape == (grid.n_cells, 9)
+
+
+@pytest.mark.parametrize("dim, column, unit", [(2, "force_N_per_mm", "N/mm"), (3, "force_N", "N")])
+def test_force_reads_the_runs_own_column_and_unit(tmp_path, dim, column, unit):
+    """A 3D run records forces in N (`force_N`), a plane-strain run in N/mm: `force` and the
+    summary line must read the column the run wrote, not assume the plane-strain one."""
+    (tmp_path / "history.csv").write_text(f"time_s,{column}\n0.5,1.5\n1.0,3.0\n")
+    key = "peak_force_" + unit.replace("/", "_per_")
+    (tmp_path / "summary.json").write_text(f'{{"scene": "s{dim}", "{key}": 3.0}}')
+    result = ft.load_result(tmp_path)
+    assert result.force_unit == unit
+    np.testing.assert_array_equal(result.force, [1.5, 3.0])
+    assert f"peak force 3.0 {unit}," in repr(result)
