@@ -1,5 +1,5 @@
 """Ask for an accuracy, get it: refine the mesh where the key outputs need it and control the
-time steps until the estimated error of every key output (`studies.keys.KEYS`) is below a
+time steps until the estimated error of every key output (`keys.KEYS`) is below a
 tolerance.
 
 The tolerance is split (`AdaptOptions.time_share`, 25 %): the mesh must reach tol_space =
@@ -85,10 +85,10 @@ import numpy as np
 from mpi4py import MPI
 
 from .errors import ConvergenceError, InputError
+from .keys import DEFLECTION_POINTS, KEY_OUTPUTS, KEYS, check_scene, key_outputs, read_key
 from .mesh import SIZE_GROWTH, SizeMap
 from .post import depth_curve
 from .solver import TIME_SHARE, tolerance_steps, verify_time
-from .studies.keys import DEFLECTION_POINTS, KEY_OUTPUTS, KEYS, check_scene, key_outputs, read_key
 
 #: |x| (mm) of the farthest surface deflection among the key outputs.
 DEFLECTION_REACH = max(DEFLECTION_POINTS)

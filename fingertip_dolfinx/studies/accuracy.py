@@ -47,7 +47,7 @@ from pathlib import Path
 from mpi4py import MPI
 
 from ..errors import ConvergenceError
-from .keys import KEY_OUTPUTS, KEYS, TIME_COLUMNS, check_scene, key_outputs
+from ..keys import KEY_OUTPUTS, KEYS, TIME_COLUMNS, check_scene, key_outputs
 
 TOL = 0.01  # "1 % on every key output"
 
