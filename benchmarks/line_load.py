@@ -61,10 +61,10 @@ from petsc4py import PETSc
 from timing import tally
 
 import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
+from fingertip_dolfinx.keys import KEYS, key_outputs, relative_errors
 from fingertip_dolfinx.outputs import read_csv
 from fingertip_dolfinx.runner import Run
 from fingertip_dolfinx.scene import load_scene
-from fingertip_dolfinx.studies.keys import KEYS, key_outputs, relative_errors
 
 EVENTS = {"residual": "SNESFunctionEval", "jacobian": "SNESJacobianEval",
           "factorisation": "MatLUFactorNum", "solve": "KSPSolve", "triangular": "MatSolve"}

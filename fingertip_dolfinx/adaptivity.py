@@ -1,5 +1,5 @@
 """Ask for an accuracy, get it: refine the mesh where the key outputs need it and control the
-time steps until the estimated error of every key output (`studies.keys.KEYS`) is below a
+time steps until the estimated error of every key output (`keys.KEYS`) is below a
 tolerance.
 
 The tolerance is split (`AdaptOptions.time_share`, 25 %): the mesh must reach tol_space =
@@ -85,10 +85,10 @@ import numpy as np
 from mpi4py import MPI
 
 from .errors import ConvergenceError, InputError
+from .keys import DEFLECTION_POINTS, KEY_OUTPUTS, KEYS, check_scene, key_outputs, read_key
 from .mesh import SIZE_GROWTH, SizeMap
 from .post import depth_curve
 from .stepping.tolerance import TIME_SHARE, tolerance_steps, verify_time
-from .studies.keys import DEFLECTION_POINTS, KEY_OUTPUTS, KEYS, check_scene, key_outputs, read_key
 
 #: |x| (mm) of the farthest surface deflection among the key outputs.
 DEFLECTION_REACH = max(DEFLECTION_POINTS)
@@ -537,9 +537,7 @@ def check_time(scene, final: dict, out: Path, options: AdaptOptions, say, comm) 
                        "a = 1/2 (stepping.verify_time)")}
 
 
-# The loop's levels, its time check and its failures in one place; to be split into a level
-# step and a time step (noqa until then).
-def adapt(scene, out: str | Path, options: AdaptOptions | None = None, *,  # noqa: C901
+def adapt(scene, out: str | Path, options: AdaptOptions | None = None, *,
           progress: bool = True, comm: MPI.Comm | None = None) -> dict:
     """Run `scene` on adapted meshes into `out` until every key output's estimated relative
     error, the mesh's plus the time stepping's, is <= options.tol (module docstring). Returns
@@ -553,8 +551,6 @@ def adapt(scene, out: str | Path, options: AdaptOptions | None = None, *,  # noq
         report["estimated_errors"], report["mesh"], report["cost"]
         ft.load_result("results/ll").depth_profile("sed_MPa", depth=0.75, t=1.0)
     """
-    from .runner import run_scene
-
     if options is None:
         options = AdaptOptions(tol=scene.accuracy.tol or 0.01,
                                max_levels=scene.accuracy.max_levels)
@@ -563,10 +559,34 @@ def adapt(scene, out: str | Path, options: AdaptOptions | None = None, *,  # noq
     out = Path(out)
     started, cpu = time.perf_counter(), time.process_time()
     base = timed_scene(start_scene(scene, options), options)
-    asked, options = options, dataclasses.replace(options, tol=options.space_tol)
-    floor = options.floor or default_floor(base)
     say = _say(progress and comm.rank == 0)
-    levels, data, failure, stop = [], [], None, ""
+    levels, level_scene, failure, stop = _mesh_levels(
+        scene, base, out, dataclasses.replace(options, tol=options.space_tol), say, progress,
+        comm)
+    timing = None
+    if levels and failure is None and options.time_share > 0:
+        try:
+            timing = check_time(level_scene, levels[-1], out, options, say, comm)
+        except ConvergenceError as error:
+            failure, stop = str(error), f"the time check failed: {error}"
+    report = _report(levels, options, stop, failure, started, cpu, comm, scene, timing)
+    if levels:
+        _publish(out, timing["published"] if timing else levels[-1]["run"], report, comm)
+    say(report["message"])
+    if failure is not None:
+        raise ConvergenceError(f"adaptive loop: {failure}")
+    return report
+
+
+def _mesh_levels(scene, base, out: Path, options: AdaptOptions, say, progress: bool,
+                 comm: MPI.Comm) -> tuple[list[dict], object, str | None, str]:
+    """The mesh loop, steps 1-4 of the module docstring, from level 0's scene `base`; options
+    with tol = the mesh's share. Returns (the levels' records, the last level's scene, the
+    failure or None, why the loop stopped)."""
+    from .runner import run_scene
+
+    floor = options.floor or default_floor(base)
+    levels, data = [], []
     level_scene = base
     for k in range(options.max_levels):
         run_dir = out / f"level-{k}"
@@ -575,60 +595,80 @@ def adapt(scene, out: str | Path, options: AdaptOptions | None = None, *,  # noq
         try:
             summary = run_scene(level_scene, run_dir, progress=progress, comm=comm)
         except ConvergenceError as error:
-            failure, stop = str(error), f"level {k} failed: {error}"
-            break
-        record = None
-        if comm.rank == 0:
-            data.append(level_data(run_dir, scene, options))
-            record = _level_record(k, run_dir, summary, time.perf_counter() - t0, data)
-            if k > 0:
-                record["estimates"] = _estimates(levels, record, options)
-        record = comm.bcast(record, root=0)
-        levels.append(record)
-        if k == 0:
-            say(f"level 0: {record['cells']} cells, {record['dofs']} dofs, "
-                f"{record['wall_time_s']:.1f} s; no estimate from one level")
-        else:
-            worst = max(KEYS, key=lambda key: record["estimates"][key]["error"])
-            say(f"level {k}: {record['cells']} cells, {record['dofs']} dofs, "
-                f"{record['wall_time_s']:.1f} s; largest estimated error "
-                f"{record['estimates'][worst]['error']:.3%} ({worst})")
-            if all(record["estimates"][key]["error"] <= options.tol for key in KEYS):
-                stop = f"every key output within {options.tol:.3g} (estimated)"
-                break
-        if k + 1 == options.max_levels:
-            stop = f"max_levels = {options.max_levels} reached"
-            break
-        plan = None
-        if comm.rank == 0:
-            plan = _plan_next(k, levels, data, options, floor)
-            (out / f"level-{k + 1}").mkdir(parents=True, exist_ok=True)
-            SizeMap(data[-1]["centroids"], plan.pop("sizes")).save(
-                out / f"level-{k + 1}" / "size_map.npz")
-        plan = comm.bcast(plan, root=0)
+            return levels, level_scene, str(error), f"level {k} failed: {error}"
+        levels.append(_record_level(k, run_dir, summary, t0, scene, options, levels, data,
+                                    comm))
+        _say_level(say, levels[-1])
+        stop = _converged_or_last(k, levels[-1], options)
+        if stop:
+            return levels, level_scene, None, stop
+        plan = _plan_level(k, levels, data, options, floor, out, comm)
         levels[-1]["next"] = plan
-        if plan["blocked"]:
-            stop = (f"the floor ({plan['floor_mm']:.3g} mm) stops the refinement of the "
-                    f"{', '.join(plan['blocked'])} region(s): lower AdaptOptions.floor")
-            break
-        if options.max_dofs and plan["predicted_dofs"] > options.max_dofs:
-            stop = (f"the next level would have ~{plan['predicted_dofs']} dofs > max_dofs = "
-                    f"{options.max_dofs}")
-            break
+        stop = _refinement_stopped(plan, options)
+        if stop:
+            return levels, level_scene, None, stop
         level_scene = _with_size_map(base, (out / f"level-{k + 1}" / "size_map.npz").resolve())
-    timing = None
-    if levels and failure is None and asked.time_share > 0:
-        try:
-            timing = check_time(level_scene, levels[-1], out, asked, say, comm)
-        except ConvergenceError as error:
-            failure, stop = str(error), f"the time check failed: {error}"
-    report = _report(levels, asked, stop, failure, started, cpu, comm, scene, timing)
-    if levels:
-        _publish(out, timing["published"] if timing else levels[-1]["run"], report, comm)
-    say(report["message"])
-    if failure is not None:
-        raise ConvergenceError(f"adaptive loop: {failure}")
-    return report
+    return levels, level_scene, None, ""
+
+
+def _record_level(k: int, run_dir: Path, summary: dict, t0: float, scene, options: AdaptOptions,
+                  levels: list, data: list, comm: MPI.Comm) -> dict:
+    """Level k's record (`_level_record`, with its estimates for k > 0), made on rank 0 (which
+    appends the level's `level_data` to `data`) and sent to every rank."""
+    record = None
+    if comm.rank == 0:
+        data.append(level_data(run_dir, scene, options))
+        record = _level_record(k, run_dir, summary, time.perf_counter() - t0, data)
+        if k > 0:
+            record["estimates"] = _estimates(levels, record, options)
+    return comm.bcast(record, root=0)
+
+
+def _say_level(say, record: dict) -> None:
+    """The progress line of a finished level: its size, cost and largest estimate."""
+    if record["level"] == 0:
+        say(f"level 0: {record['cells']} cells, {record['dofs']} dofs, "
+            f"{record['wall_time_s']:.1f} s; no estimate from one level")
+        return
+    worst = max(KEYS, key=lambda key: record["estimates"][key]["error"])
+    say(f"level {record['level']}: {record['cells']} cells, {record['dofs']} dofs, "
+        f"{record['wall_time_s']:.1f} s; largest estimated error "
+        f"{record['estimates'][worst]['error']:.3%} ({worst})")
+
+
+def _converged_or_last(k: int, record: dict, options: AdaptOptions) -> str:
+    """Why the loop stops after level k: every estimate within tol, or the last level; "" to
+    go on."""
+    if k > 0 and all(record["estimates"][key]["error"] <= options.tol for key in KEYS):
+        return f"every key output within {options.tol:.3g} (estimated)"
+    if k + 1 == options.max_levels:
+        return f"max_levels = {options.max_levels} reached"
+    return ""
+
+
+def _plan_level(k: int, levels: list, data: list, options: AdaptOptions, floor: float,
+                out: Path, comm: MPI.Comm) -> dict:
+    """Level k + 1's plan (`_plan_next`), made on rank 0, which writes its size map to
+    out/level-<k+1>/size_map.npz; every rank gets the plan (without the sizes)."""
+    plan = None
+    if comm.rank == 0:
+        plan = _plan_next(k, levels, data, options, floor)
+        (out / f"level-{k + 1}").mkdir(parents=True, exist_ok=True)
+        SizeMap(data[-1]["centroids"], plan.pop("sizes")).save(
+            out / f"level-{k + 1}" / "size_map.npz")
+    return comm.bcast(plan, root=0)
+
+
+def _refinement_stopped(plan: dict, options: AdaptOptions) -> str:
+    """Why the planned level is not run: the floor blocks a region, or it would exceed
+    max_dofs; "" to run it."""
+    if plan["blocked"]:
+        return (f"the floor ({plan['floor_mm']:.3g} mm) stops the refinement of the "
+                f"{', '.join(plan['blocked'])} region(s): lower AdaptOptions.floor")
+    if options.max_dofs and plan["predicted_dofs"] > options.max_dofs:
+        return (f"the next level would have ~{plan['predicted_dofs']} dofs > max_dofs = "
+                f"{options.max_dofs}")
+    return ""
 
 
 def _say(active: bool):

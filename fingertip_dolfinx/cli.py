@@ -384,8 +384,8 @@ def _run_sweep(args) -> int:
 
 
 def _run_parameter_sweep(args) -> int:
+    from .keys import KEY_OUTPUTS
     from .scene import parse_override
-    from .studies.keys import KEY_OUTPUTS
     from .studies.parameters import parameter_sweep
 
     if (args.values is None) == (args.factors is None):

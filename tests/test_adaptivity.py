@@ -14,10 +14,10 @@ from mpi4py import MPI
 from fingertip_dolfinx import adaptivity as ad
 from fingertip_dolfinx.errors import InputError
 from fingertip_dolfinx.geometry import Section
+from fingertip_dolfinx.keys import KEYS
 from fingertip_dolfinx.kinematics import hencky_strain
 from fingertip_dolfinx.mesh import SizeMap, build_mesh
 from fingertip_dolfinx.scene import load_scene
-from fingertip_dolfinx.studies.keys import KEYS
 
 # --- the indicator on fields with known answers --------------------------------------------------
 
@@ -266,8 +266,8 @@ def loop(tmp_path_factory):
     unknowns, within 0.2 % of the Richardson value of 0.1 -> 0.071 -> 0.05 mm on every key
     output, measured)."""
     from fingertip_dolfinx.cli import main
+    from fingertip_dolfinx.keys import key_outputs
     from fingertip_dolfinx.runner import run_scene
-    from fingertip_dolfinx.studies.keys import key_outputs
 
     out = MPI.COMM_WORLD.bcast(tmp_path_factory.mktemp("adapt"), root=0)
     assert main(["run", "1pt", "--tol", "0.05", *COARSE, "--quiet",

@@ -13,7 +13,7 @@ import pytest
 import fingertip_dolfinx as ft
 from fingertip_dolfinx.cli import main
 from fingertip_dolfinx.errors import InputError
-from fingertip_dolfinx.studies.keys import KEY_OUTPUTS, KEYS, TIME_COLUMNS, check_scene, key_outputs
+from fingertip_dolfinx.keys import KEY_OUTPUTS, KEYS, TIME_COLUMNS, check_scene, key_outputs
 
 SED = "sed_MPa_peak_at_depth0.75mm_max_over_run"
 E_MAX = "e_max_peak_at_depth0.75mm_max_over_run"
@@ -108,8 +108,8 @@ def test_a_sweep_at_another_depth_stops_before_its_first_run(tmp_path, capsys):
 def test_records_with_the_old_names_are_refused(tmp_path):
     """A fidelity.csv (for --fidelity-table) or an accuracy reference written with the old
     names: one line saying to rerun, not a KeyError."""
+    from fingertip_dolfinx.keys import relative_errors
     from fingertip_dolfinx.studies.fidelity import read_table
-    from fingertip_dolfinx.studies.keys import relative_errors
 
     old = tmp_path / "fidelity.csv"
     old.write_text("model,max_error,error_peak_force,peak_force,failure\nfull,0,0,1e-3,\n")

@@ -12,9 +12,9 @@ import math
 import pytest
 from mpi4py import MPI
 
+from fingertip_dolfinx.keys import KEYS
 from fingertip_dolfinx.scene import load_scene
 from fingertip_dolfinx.studies import accuracy as acc
-from fingertip_dolfinx.studies.keys import KEYS
 
 QUICK = acc.Plan(sizes=(0.4, 1.2, 2.0), ratio=2.0, scale_outer=False,
                  family_levels=((0, 0), (1, 1), (0, 2)), time_levels=1, time_level=None,

@@ -47,7 +47,7 @@ from pathlib import Path
 from mpi4py import MPI
 
 from ..errors import ConvergenceError
-from .keys import KEY_OUTPUTS, KEYS, TIME_COLUMNS, check_scene, key_outputs
+from ..keys import KEY_OUTPUTS, KEYS, TIME_COLUMNS, check_scene, key_outputs
 
 TOL = 0.01  # "1 % on every key output"
 
@@ -263,8 +263,41 @@ def _mesh_plan(scene_name, overrides, plan: Plan, levels: int):
     return scene, out
 
 
-# One loop over the plan's families and levels, with its reporting; to be split (noqa until then).
-def run_accuracy_study(scene_name: str, out: Path, *, levels: int = 3, coarse: bool = True,  # noqa: C901
+def _mesh_settings(h: float, max_size: float, bone_size: float) -> list[str]:
+    """The overrides of a run's mesh sizes (mm)."""
+    return [f"section.mesh.min_size={h!r}", f"section.mesh.max_size={max_size!r}",
+            f"section.mesh.bone_size={bone_size!r}"]
+
+
+@dataclass(frozen=True)
+class _Runs:
+    """What every run of one study shares: the scene, the study's overrides (before each
+    run's own), the output folder, progress and the communicator."""
+
+    scene_name: str
+    overrides: tuple[str, ...]
+    out: Path
+    progress: bool
+    comm: MPI.Comm
+
+    def say(self, text: str) -> None:
+        if self.progress and self.comm.rank == 0:
+            print(f"[accuracy] {text}", flush=True)
+
+    def run(self, settings: list[str], slug: str) -> dict:
+        """One run into out/<slug>/ (`_run_one`)."""
+        return _run_one(self.scene_name, settings, self.out / slug, self.progress, self.comm)
+
+
+#: What the coarse study's plan means for its reference (accuracy.md's notes).
+COARSE_NOTE = ("Coarse study: max_size and bone_size are held at a coarse value while min_size "
+               "refines, so the Richardson value is the limit min_size -> 0 at that far-field "
+               "size (the full study refines the whole mesh); Q2/Q1 runs on the two finer "
+               "meshes (Newton fails on the coarsest quadrilateral mesh of the 1pt scene), P1 "
+               "on the two coarser ones; Δt is refined on the middle mesh.")
+
+
+def run_accuracy_study(scene_name: str, out: Path, *, levels: int = 3, coarse: bool = True,
                        overrides=(), progress: bool = False, plan: Plan | None = None,
                        adapt_tol: float | None = None) -> dict:
     """Run the accuracy study of `scene_name` into `out` (see the module docstring).
@@ -284,65 +317,87 @@ def run_accuracy_study(scene_name: str, out: Path, *, levels: int = 3, coarse: b
     check_scene(scene, f"accuracy study of {scene_name}")
     families, notes = families_for(scene)
     if plan is COARSE:
-        notes.append("Coarse study: max_size and bone_size are held at a coarse value while "
-                     "min_size refines, so the Richardson value is the limit min_size -> 0 at "
-                     "that far-field size (the full study refines the whole mesh); Q2/Q1 runs "
-                     "on the two finer meshes (Newton fails on the coarsest quadrilateral mesh "
-                     "of the 1pt scene), P1 on the two coarser ones; Δt is refined on the "
-                     "middle mesh.")
-    dt0, dtmax0 = scene.steps.dt_initial, scene.steps.dt_max
+        notes.append(COARSE_NOTE)
+    runs = _Runs(scene_name, tuple(base_overrides), out, progress, comm)
+    dt = (scene.steps.dt_initial, scene.steps.dt_max)
+    rows = _mesh_rows(runs, families, sizes, plan, dt)
+    time_rows = _time_rows(runs, families[0], rows, sizes, plan, dt)
+    rows += time_rows[1:]
+    by_family = {fam.name: _extrapolate([r for r in rows if r["family"] == fam.name
+                                         and r["kind"] == "mesh"], plan.ratio)
+                 for fam in families}
+    time_est = _extrapolate(time_rows, 2.0)
+    references = _references(families, by_family, time_est, time_rows[0])
+    _score(rows, references)
+    best = cheapest_within(rows, TOL)
+    adaptive = None
+    if adapt_tol is not None:
+        adaptive = _check_the_loop(runs, families[0], rows, sizes, plan, references["scene"],
+                                   adapt_tol)
+    result = {"scene": scene_name, "coarse": coarse, "ratio": plan.ratio,
+              "rows": rows, "richardson": by_family[families[0].name],
+              "richardson_by_family": by_family, "time_richardson": time_est,
+              "reference": references["scene"], "references": references,
+              "cheapest_1pct": best, "sentence": _sentence(best, rows, scene_name),
+              "notes": notes, "adaptive": adaptive}
+    if comm.rank == 0:
+        out.mkdir(parents=True, exist_ok=True)
+        _write(result, out)
+    comm.barrier()
+    return result
 
-    def say(text):
-        if progress and comm.rank == 0:
-            print(f"[accuracy] {text}", flush=True)
 
+def _mesh_rows(runs: _Runs, families: list[Family], sizes: list, plan: Plan,
+               dt: tuple[float, float]) -> list[dict]:
+    """Every family on its mesh levels of the plan, at the scene's time steps."""
     rows = []
     for fi, fam in enumerate(families):
         if plan.family_levels is not None and plan.family_levels[fi] is None:
             continue
         first, drop = (0, 0) if plan.family_levels is None else plan.family_levels[fi]
-        for k, (h, mx, bone) in list(enumerate(sizes))[first:levels - drop]:
+        for k, (h, mx, bone) in list(enumerate(sizes))[first:len(sizes) - drop]:
             slug = f"{_slug(fam.name)}-h{h:.4g}"
-            settings = base_overrides + list(fam.settings) + [
-                f"section.mesh.min_size={h!r}", f"section.mesh.max_size={mx!r}",
-                f"section.mesh.bone_size={bone!r}"]
-            say(f"{fam.name}, h = {h:.4g} mm")
+            settings = list(runs.overrides) + list(fam.settings) + _mesh_settings(h, mx, bone)
+            runs.say(f"{fam.name}, h = {h:.4g} mm")
             row = {"family": fam.name, "model": fam.model, "kind": "mesh", "level": k,
                    "h_mm": h, "max_size_mm": mx, "bone_size_mm": bone, "degree": fam.degree,
-                   "cell": fam.cell, "dt_initial_s": dt0, "dt_max_s": dtmax0, "run": slug}
-            row.update(_run_one(scene_name, settings, out / slug, progress, comm))
+                   "cell": fam.cell, "dt_initial_s": dt[0], "dt_max_s": dt[1], "run": slug}
+            row.update(runs.run(settings, slug))
             row["settings"] = " ".join(list(fam.settings) + settings[-3:])
             rows.append(row)
+    return rows
 
-    # Δt refinement on one mesh of the reference family.
-    ref = families[0]
+
+def _time_rows(runs: _Runs, ref: Family, rows: list[dict], sizes: list, plan: Plan,
+               dt: tuple[float, float]) -> list[dict]:
+    """The Δt refinement on one mesh of the reference family `ref`: its run at the scene's
+    steps (from `rows`), then dt_initial and dt_max halved per level."""
+    levels = len(sizes)
     t_index = (levels - 1) if plan.time_level is None else min(plan.time_level, levels - 1)
     h, mx, bone = sizes[t_index]
+    dt0, dtmax0 = dt
     time_rows = [next(r for r in rows if r["family"] == ref.name and r["level"] == t_index)]
     for j in range(1, plan.time_levels):
         f = 0.5 ** j
         slug = f"{_slug(ref.name)}-h{h:.4g}-dt{dtmax0 * f:.4g}"
-        settings = base_overrides + list(ref.settings) + [
-            f"section.mesh.min_size={h!r}", f"section.mesh.max_size={mx!r}",
-            f"section.mesh.bone_size={bone!r}", f"steps.dt_initial={dt0 * f!r}",
-            f"steps.dt_max={dtmax0 * f!r}"]
-        say(f"{ref.name}, h = {h:.4g} mm, dt_max = {dtmax0 * f:.4g} s")
+        settings = list(runs.overrides) + list(ref.settings) + _mesh_settings(h, mx, bone) + [
+            f"steps.dt_initial={dt0 * f!r}", f"steps.dt_max={dtmax0 * f!r}"]
+        runs.say(f"{ref.name}, h = {h:.4g} mm, dt_max = {dtmax0 * f:.4g} s")
         row = {"family": f"{ref.name}, Δt refined", "model": "scene", "kind": "time",
                "level": j, "h_mm": h, "max_size_mm": mx, "bone_size_mm": bone,
                "degree": ref.degree, "cell": ref.cell, "dt_initial_s": dt0 * f,
                "dt_max_s": dtmax0 * f, "run": slug}
-        row.update(_run_one(scene_name, settings, out / slug, progress, comm))
+        row.update(runs.run(settings, slug))
         row["settings"] = " ".join(list(ref.settings) + settings[-5:])
-        rows.append(row)
         time_rows.append(row)
+    return time_rows
 
-    # Richardson estimates per family (mesh) and in time; the references per model.
-    by_family = {}
-    for fam in families:
-        seq = [r for r in rows if r["family"] == fam.name and r["kind"] == "mesh"]
-        by_family[fam.name] = _extrapolate(seq, plan.ratio)
-    time_est = _extrapolate(time_rows, 2.0)
-    base_t = time_rows[0]  # the base-Δt run on that mesh
+
+def _references(families: list[Family], by_family: dict, time_est: dict,
+                base_t: dict) -> dict:
+    """The converged value of each model (the scene's, a substitute's) per key: the first
+    family of the model's Richardson value, for the scene's model plus the time-step
+    correction (time_est's value minus `base_t`, the base-Δt run it started from)."""
     references = {}
     for fam in families:
         if fam.model in references:
@@ -353,6 +408,11 @@ def run_accuracy_study(scene_name: str, out: Path, *, levels: int = 3, coarse: b
                 k: est[k]["estimate"] + (time_est[k]["estimate"] - base_t[k]) for k in KEYS}
         else:
             references[fam.model] = {k: est[k]["estimate"] for k in KEYS}
+    return references
+
+
+def _score(rows: list[dict], references: dict) -> None:
+    """Each row's relative error per key against its model's reference, and the largest."""
     for r in rows:
         refv = references[r["model"]]
         errs = {k: abs(r[k] - refv[k]) / max(abs(refv[k]), 1e-300) for k in KEYS}
@@ -360,43 +420,35 @@ def run_accuracy_study(scene_name: str, out: Path, *, levels: int = 3, coarse: b
             r[f"error_{k}"] = errs[k]
         r["max_error"] = max(errs.values()) if r["converged"] else math.nan
 
-    best = cheapest_within(rows, TOL)
-    sentence = _sentence(best, rows, scene_name)
-    adaptive = None
-    if adapt_tol is not None:
-        ladder = [r for r in rows if r["family"] == ref.name and r["kind"] == "mesh"
-                  and r["converged"]]
-        finest = ladder[-1]
-        previous = ladder[-2] if len(ladder) > 1 and (
-            ladder[-1]["level"] - ladder[-2]["level"] == 1) else None
-        far = None
-        if not plan.scale_outer:  # the far field is held: how much does it matter?
-            h, mx, bone = sizes[finest["level"]]
-            say(f"{ref.name}, h = {h:.4g} mm, far field halved (the reference's uncertainty)")
-            settings = base_overrides + list(ref.settings) + [
-                f"section.mesh.min_size={h!r}", f"section.mesh.max_size={max(mx / 2, h)!r}",
-                f"section.mesh.bone_size={max(bone / 2, h)!r}"]
-            far = _run_one(scene_name, settings, out / f"{_slug(ref.name)}-h{h:.4g}-far-halved",
-                           progress, comm)
-            if not far["converged"]:
-                far = None
-        uncertainty = reference_uncertainty(finest, previous, references["scene"], plan.ratio,
-                                            far)
-        say(f"adaptive loop, tol = {adapt_tol:g}, from h = {sizes[0][0]:.4g} mm")
-        adaptive = check_adaptive(scene_name, base_overrides + list(ref.settings), sizes[0],
-                                  out / "adaptive", adapt_tol, references["scene"],
-                                  uncertainty, progress)
-    result = {"scene": scene_name, "coarse": coarse, "ratio": plan.ratio,
-              "rows": rows, "richardson": by_family[ref.name],
-              "richardson_by_family": by_family, "time_richardson": time_est,
-              "reference": references["scene"], "references": references,
-              "cheapest_1pct": best, "sentence": sentence, "notes": notes,
-              "adaptive": adaptive}
-    if comm.rank == 0:
-        out.mkdir(parents=True, exist_ok=True)
-        _write(result, out)
-    comm.barrier()
-    return result
+
+def _check_the_loop(runs: _Runs, ref: Family, rows: list[dict], sizes: list, plan: Plan,
+                    reference: dict, adapt_tol: float) -> dict:
+    """The adaptive loop from the coarsest mesh of the reference family, scored against the
+    study's `reference` with that reference's own uncertainty (`check_adaptive`)."""
+    ladder = [r for r in rows if r["family"] == ref.name and r["kind"] == "mesh"
+              and r["converged"]]
+    finest = ladder[-1]
+    previous = ladder[-2] if len(ladder) > 1 and (
+        ladder[-1]["level"] - ladder[-2]["level"] == 1) else None
+    far = None
+    if not plan.scale_outer:  # the far field is held: how much does it matter?
+        far = _far_field_halved(runs, ref, sizes[finest["level"]])
+    uncertainty = reference_uncertainty(finest, previous, reference, plan.ratio, far)
+    runs.say(f"adaptive loop, tol = {adapt_tol:g}, from h = {sizes[0][0]:.4g} mm")
+    return check_adaptive(runs.scene_name, list(runs.overrides) + list(ref.settings), sizes[0],
+                          runs.out / "adaptive", adapt_tol, reference, uncertainty,
+                          runs.progress)
+
+
+def _far_field_halved(runs: _Runs, ref: Family, size: tuple[float, float, float]) -> dict | None:
+    """The finest run of the reference family again with max_size and bone_size halved (not
+    below min_size); None if it fails."""
+    h, mx, bone = size
+    runs.say(f"{ref.name}, h = {h:.4g} mm, far field halved (the reference's uncertainty)")
+    settings = list(runs.overrides) + list(ref.settings) + _mesh_settings(
+        h, max(mx / 2, h), max(bone / 2, h))
+    far = runs.run(settings, f"{_slug(ref.name)}-h{h:.4g}-far-halved")
+    return far if far["converged"] else None
 
 
 def check_adaptive(scene_name, settings, start, out: Path, tol: float, reference: dict,
@@ -414,34 +466,11 @@ def check_adaptive(scene_name, settings, start, out: Path, tol: float, reference
     error_<key>, estimate_<key>}], "estimated", "true", "uncertainty", "verdict",
     "bound": {key: bool}, "all_bound", "sentence", "failure"}.
     """
-    from ..adaptivity import AdaptOptions, adapt
-    from ..scene import load_scene
-
-    h, mx, bone = start
-    scene = load_scene(scene_name, list(settings) + [
-        f"section.mesh.min_size={h!r}", f"section.mesh.max_size={mx!r}",
-        f"section.mesh.bone_size={bone!r}"])
-    try:
-        report = adapt(scene, out, AdaptOptions(tol=tol, coarsen=1.0), progress=progress)
-        failure = None
-    except ConvergenceError as error:
-        failure = str(error)
-        report = json.loads((Path(out) / "adapt.json").read_text()) if (
-            Path(out) / "adapt.json").is_file() else None
+    report, failure = _run_the_loop(scene_name, settings, start, out, tol, progress)
     if report is None or not report["levels"]:
         return {"tol": tol, "failure": failure, "levels": [], "all_bound": False,
                 "sentence": f"The adaptive loop failed: {failure}"}
-
-    def error(value, key):
-        return abs(value - reference[key]) / max(abs(reference[key]), 1e-300)
-
-    levels = []
-    for lv in report["levels"]:
-        row = {k: lv[k] for k in ("level", "cells", "dofs", "wall_time_s")}
-        row.update({f"error_{k}": error(lv["values"][k], k) for k in KEYS})
-        row.update({f"estimate_{k}": lv["estimates"][k]["error"] if "estimates" in lv
-                    else math.nan for k in KEYS})
-        levels.append(row)
+    levels = _scored_levels(report["levels"], reference)
     final = levels[-1]
     estimated = {k: final[f"estimate_{k}"] for k in KEYS}
     true = {k: final[f"error_{k}"] for k in KEYS}
@@ -463,6 +492,37 @@ def check_adaptive(scene_name, settings, start, out: Path, tol: float, reference
             "uncertainty": uncertainty, "verdict": verdict, "bound": bound,
             "all_bound": not unsure, "no_failures": "no" not in verdict.values(),
             "sentence": sentence}
+
+
+def _run_the_loop(scene_name, settings, start, out: Path, tol: float,
+                  progress: bool) -> tuple[dict | None, str | None]:
+    """`adapt` from the mesh sizes `start`: (its report, None), or after a failure (the
+    adapt.json it wrote, or None; the failure's message)."""
+    from ..adaptivity import AdaptOptions, adapt
+    from ..scene import load_scene
+
+    scene = load_scene(scene_name, list(settings) + _mesh_settings(*start))
+    try:
+        return adapt(scene, out, AdaptOptions(tol=tol, coarsen=1.0), progress=progress), None
+    except ConvergenceError as error:
+        path = Path(out) / "adapt.json"
+        return (json.loads(path.read_text()) if path.is_file() else None), str(error)
+
+
+def _scored_levels(levels: list[dict], reference: dict) -> list[dict]:
+    """The loop's levels, each key output's true error (against `reference`) beside the
+    loop's estimate (NaN at level 0)."""
+    def error(value, key):
+        return abs(value - reference[key]) / max(abs(reference[key]), 1e-300)
+
+    scored = []
+    for lv in levels:
+        row = {k: lv[k] for k in ("level", "cells", "dofs", "wall_time_s")}
+        row.update({f"error_{k}": error(lv["values"][k], k) for k in KEYS})
+        row.update({f"estimate_{k}": lv["estimates"][k]["error"] if "estimates" in lv
+                    else math.nan for k in KEYS})
+        scored.append(row)
+    return scored
 
 
 def reference_uncertainty(finest: dict, previous: dict | None, reference: dict, ratio: float,
@@ -556,15 +616,22 @@ def _fmt(v, spec=".3g"):
 
 
 def _write(result: dict, out: Path):
-    rows = result["rows"]
+    """accuracy.csv, accuracy.json, accuracy.md and accuracy.png of `result` into `out`."""
     with (out / "accuracy.csv").open("w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=CSV_COLUMNS, extrasaction="ignore")
         writer.writeheader()
-        writer.writerows(rows)
+        writer.writerows(result["rows"])
     meta = {k: v for k, v in result.items() if k != "rows"}
     (out / "accuracy.json").write_text(json.dumps(meta, indent=1, default=str))
-
     short = {k.column: k.short for k in KEY_OUTPUTS}
+    lines = (_runs_table(result, short) + _richardson_table(result, short)
+             + _adaptive_table(result.get("adaptive"), short) + _notes(result))
+    (out / "accuracy.md").write_text("\n".join(lines) + "\n")
+    _chart(result, out / "accuracy.png")
+
+
+def _runs_table(result: dict, short: dict) -> list[str]:
+    """accuracy.md's title, sentence and the table of every run's errors and cost."""
     lines = [f"# Accuracy study: `{result['scene']}` "
              f"({'coarse' if result['coarse'] else 'full'}; mesh ratio r = {result['ratio']:.4g})",
              "", "**" + result["sentence"] + "**", "",
@@ -577,7 +644,7 @@ def _write(result: dict, out: Path):
              + " | ".join(short[k] for k in KEYS) + " | max |",
              "| --- | ---: | ---: | ---: | ---: | ---: | " + " | ".join("---:" for _ in KEYS)
              + " | ---: |"]
-    for r in rows:
+    for r in result["rows"]:
         if not r["converged"]:
             lines.append(f"| {r['family']} | {r['h_mm']:.4g} | {r['dt_max_s']:.4g} | "
                          f"{r['dofs'] or '—'} | — | — | failed: {r['failure']} |"
@@ -587,9 +654,15 @@ def _write(result: dict, out: Path):
                      f"{r['wall_time_s']:.1f} | {r['peak_rss_MB']:.0f} | "
                      + " | ".join(f"{100 * r[f'error_{k}']:.3f} %" for k in KEYS)
                      + f" | {100 * r['max_error']:.3f} % |")
-    lines += ["", "## Richardson estimates (mesh) and observed orders", "",
-              "| family | " + " | ".join(short[k] for k in KEYS) + " |",
-              "| --- | " + " | ".join("---:" for _ in KEYS) + " |"]
+    return lines
+
+
+def _richardson_table(result: dict, short: dict) -> list[str]:
+    """accuracy.md's Richardson estimates and observed orders, per family and in Δt, and the
+    reference."""
+    lines = ["", "## Richardson estimates (mesh) and observed orders", "",
+             "| family | " + " | ".join(short[k] for k in KEYS) + " |",
+             "| --- | " + " | ".join("---:" for _ in KEYS) + " |"]
     for fam, est in result["richardson_by_family"].items():
         lines.append(f"| {fam}: f∞ | " + " | ".join(_fmt(est[k]["estimate"], ".6g")
                                                     for k in KEYS) + " |")
@@ -601,34 +674,45 @@ def _write(result: dict, out: Path):
                  + " |")
     lines.append("| reference | " + " | ".join(_fmt(result["reference"][k], ".6g") for k in KEYS)
                  + " |")
-    adaptive = result.get("adaptive")
-    if adaptive:
-        lines += ["", (f"## The adaptive loop (tol = {adaptive['tol']:g}): estimated against "
-                       "true errors"), "", "**" + adaptive["sentence"] + "**", "",
-                  ("Per level: the true error against the reference above / the loop's "
-                   "estimate (none at level 0). The loop starts from the coarsest mesh of the "
-                   "reference family (`adaptivity.py`)."), "",
-                  "| level | cells | dofs | wall (s) | " + " | ".join(short[k] for k in KEYS)
-                  + " |", "| ---: | ---: | ---: | ---: | " + " | ".join("---:" for _ in KEYS)
-                  + " |"]
-        for r in adaptive["levels"]:
-            lines.append(f"| {r['level']} | {r['cells']} | {r['dofs']} | {r['wall_time_s']:.1f} | "
-                         + " | ".join(f"{100 * r[f'error_{k}']:.3f} / "
-                                      f"{_fmt(100 * r[f'estimate_{k}'], '.3f')} %" for k in KEYS)
-                         + " |")
-        lines.append("| the reference's uncertainty | | | | " + " | ".join(
-            f"{100 * adaptive['uncertainty'][k]:.3f} %" for k in KEYS) + " |")
-        lines.append("| bound holds | | | | " + " | ".join(
-            {"yes": "yes", "no": "**no**"}.get(adaptive["verdict"][k], "within the "
-                                                "reference's uncertainty") for k in KEYS)
+    return lines
+
+
+def _adaptive_table(adaptive: dict | None, short: dict) -> list[str]:
+    """accuracy.md's check of the adaptive loop (none without one): per level the true error
+    beside the estimate, the reference's uncertainty and where the bound holds."""
+    if not adaptive:
+        return []
+    lines = ["", (f"## The adaptive loop (tol = {adaptive['tol']:g}): estimated against "
+                  "true errors"), "", "**" + adaptive["sentence"] + "**", "",
+             ("Per level: the true error against the reference above / the loop's "
+              "estimate (none at level 0). The loop starts from the coarsest mesh of the "
+              "reference family (`adaptivity.py`)."), "",
+             "| level | cells | dofs | wall (s) | " + " | ".join(short[k] for k in KEYS)
+             + " |", "| ---: | ---: | ---: | ---: | " + " | ".join("---:" for _ in KEYS)
+             + " |"]
+    for r in adaptive["levels"]:
+        lines.append(f"| {r['level']} | {r['cells']} | {r['dofs']} | {r['wall_time_s']:.1f} | "
+                     + " | ".join(f"{100 * r[f'error_{k}']:.3f} / "
+                                  f"{_fmt(100 * r[f'estimate_{k}'], '.3f')} %" for k in KEYS)
                      + " |")
-        lines += ["", ("The reference's uncertainty: the Richardson correction it applied to "
-                       "the finest run, plus that run's grid convergence index at the formal "
-                       "order 2, |f_finest - f_previous| / (r^2 - 1), plus, where the study holds "
-                       "the far field, how much the finest run moves when the far field is "
-                       "halved (the loop refines the far field where its indicator asks). An "
-                       "error within it cannot be judged by this reference.")]
-    lines += ["", "## Notes", ""] + [f"- {n}" for n in result["notes"]]
+    lines.append("| the reference's uncertainty | | | | " + " | ".join(
+        f"{100 * adaptive['uncertainty'][k]:.3f} %" for k in KEYS) + " |")
+    lines.append("| bound holds | | | | " + " | ".join(
+        {"yes": "yes", "no": "**no**"}.get(adaptive["verdict"][k], "within the "
+                                            "reference's uncertainty") for k in KEYS)
+                 + " |")
+    return lines + ["", ("The reference's uncertainty: the Richardson correction it applied "
+                         "to the finest run, plus that run's grid convergence index at the "
+                         "formal order 2, |f_finest - f_previous| / (r^2 - 1), plus, where the "
+                         "study holds the far field, how much the finest run moves when the "
+                         "far field is halved (the loop refines the far field where its "
+                         "indicator asks). An error within it cannot be judged by this "
+                         "reference.")]
+
+
+def _notes(result: dict) -> list[str]:
+    """accuracy.md's notes: the study's, where Richardson was not applied, and the caveats."""
+    lines = ["", "## Notes", ""] + [f"- {n}" for n in result["notes"]]
     for fam, est in list(result["richardson_by_family"].items()) + [
             ("Δt", result["time_richardson"])]:
         notes = {}
@@ -643,8 +727,7 @@ def _write(result: dict, out: Path):
                  "noise; the Δt levels halve dt_initial and dt_max (the adaptive step control "
                  "then picks its steps, cuts included).")
     lines.append("- The Pareto front (accuracy.png) is over the runs of the scene's model.")
-    (out / "accuracy.md").write_text("\n".join(lines) + "\n")
-    _chart(result, out / "accuracy.png")
+    return lines
 
 
 def _chart(result: dict, path: Path):

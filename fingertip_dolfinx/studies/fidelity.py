@@ -23,7 +23,7 @@ from pathlib import Path
 from mpi4py import MPI
 
 from ..errors import ConvergenceError, InputError
-from .keys import KEY_OUTPUTS, KEYS, TIME_COLUMNS, check_scene, key_outputs, relative_errors
+from ..keys import KEY_OUTPUTS, KEYS, TIME_COLUMNS, check_scene, key_outputs, relative_errors
 
 LADDER = (
     ("continuum", ["model.tissue=\"continuum\""]),

@@ -21,8 +21,8 @@ import numpy as np
 from mpi4py import MPI
 
 from ..errors import InputError
+from ..keys import KEY_OUTPUTS, KEYS, TIME_COLUMNS, check_scene, key_outputs
 from ..outputs import read_csv, write_json
-from .keys import KEY_OUTPUTS, KEYS, TIME_COLUMNS, check_scene, key_outputs
 
 
 def parameter_sweep(scene_name: str, key: str, out: Path, *, values: Sequence | None = None,

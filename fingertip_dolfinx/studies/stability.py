@@ -341,51 +341,68 @@ def poroelastic_time_step(coarse: bool = True, profiles: dict | None = None) -> 
 
 
 def compaction_and_drucker(coarse: bool = True) -> list[dict]:
-    rows = []
-    # (a) the direct check
+    """Case 5: compaction named by the material check and by the solver, and the Drucker check
+    of the paper's foams beside a deliberately unstable one."""
+    unstable = mat.Hyperfoam(mu=(0.1, -0.05), alpha=(2.0, 6.0), nu=0.3,
+                             where="unstable test foam")
+    return [_compaction_check(), *_squeezed_columns(coarse), *_drucker_sets(unstable),
+            *_state_checks(unstable)]
+
+
+def _compaction_check() -> dict:
+    """(a) The direct check: J below the solid volume fraction."""
     try:
         mat.check_compaction(0.39, "subcutaneous tissue at (0, -5) mm", 0.4)
         msg = "no error"
     except CompactionError as e:
         msg = str(e)
-    rows.append({"case": "5 compaction / Drucker", "method": "materials.check_compaction",
-                 "parameter": "J_min", "value": 0.39, "detected": "solid volume fraction" in msg,
-                 "message": msg})
-    # (b) the solver: drained columns squeezed to 70 % of their height (mean J → 0.3 < φ0)
-    hm = mat.HOLMES_MOW_SUBCUTANEOUS
+    return {"case": "5 compaction / Drucker", "method": "materials.check_compaction",
+            "parameter": "J_min", "value": 0.39, "detected": "solid volume fraction" in msg,
+            "message": msg}
+
+
+def _squeezed_columns(coarse: bool) -> list[dict]:
+    """(b) The solver: drained columns squeezed to 70 % of their height (mean J → 0.3 < φ0)."""
     soft = mat.Hyperfoam(mu=mat.SUBCUTANEOUS.mu, alpha=mat.SUBCUTANEOUS.alpha, nu=0.05,
                          where="subcutaneous mu/alpha, nu = 0.05")
-    for solid, tolerances, label in (
+    return [_squeezed_column(solid, tolerances, label, coarse) for solid, tolerances, label in (
         (mat.SUBCUTANEOUS, {}, "subcutaneous, default SNES tolerances"),
         (mat.SUBCUTANEOUS, TIGHT, "subcutaneous, snes_atol 1e-16"),
         (soft, {}, "nu = 0.05 (soft in volume), default SNES tolerances"),
-    ):
-        M = confined_modulus(solid)
-        # c = k M ~ 10 mm²/s: drains within the 1 s squeeze, so J follows it
-        tissue = mat.Biphasic(solid, mat.HolmesMow(k0=10.0 / M, phi0=hm.phi0, kappa=hm.kappa,
-                                                   M=hm.M))
-        history = PiecewiseLinear((0.0, 1.0), (0.0, 0.7))
-        block = ConfinedBlock(1, 4 if coarse else 8, history, tissue=tissue, degree_u=2,
-                              width=0.25, drained_top=True, top_displacement=True)
-        stepper = TimeStepper(block, StepOptions(dt_initial=0.1, dt_min=1e-3, dt_max=0.1,
-                                                 max_cuts=6), tolerances,
-                              prefix=_prefix("compaction"))
-        reached = []
-        try:
-            stepper.run(history, 1.0, on_step=lambda r, reached=reached: reached.append(
-                (r.time, r.load, r.diagnostics["J_min"])))
-            msg = "no error"
-        except ConvergenceError as e:
-            msg = str(e)
-        _, d_last, J_last = reached[-1] if reached else (0.0, 0.0, 1.0)
-        rows.append({"case": "5 compaction / Drucker", "method": "TimeStepper, column squeezed",
-                     "parameter": "solid", "value": label,
-                     "detected": "solid volume fraction" in msg,
-                     "last_accepted_settlement_over_H": d_last,
-                     "J_min_last_accepted": J_last, "message": msg})
-    # (c) Drucker: the paper's sets and a deliberately unstable one
-    unstable = mat.Hyperfoam(mu=(0.1, -0.05), alpha=(2.0, 6.0), nu=0.3,
-                             where="unstable test foam")
+    )]
+
+
+def _squeezed_column(solid, tolerances: dict, label: str, coarse: bool) -> dict:
+    """One drained column of `solid` squeezed until the solver stops: does it name
+    compaction, and where was the last accepted step?"""
+    hm = mat.HOLMES_MOW_SUBCUTANEOUS
+    M = confined_modulus(solid)
+    # c = k M ~ 10 mm²/s: drains within the 1 s squeeze, so J follows it
+    tissue = mat.Biphasic(solid, mat.HolmesMow(k0=10.0 / M, phi0=hm.phi0, kappa=hm.kappa,
+                                               M=hm.M))
+    history = PiecewiseLinear((0.0, 1.0), (0.0, 0.7))
+    block = ConfinedBlock(1, 4 if coarse else 8, history, tissue=tissue, degree_u=2,
+                          width=0.25, drained_top=True, top_displacement=True)
+    stepper = TimeStepper(block, StepOptions(dt_initial=0.1, dt_min=1e-3, dt_max=0.1,
+                                             max_cuts=6), tolerances,
+                          prefix=_prefix("compaction"))
+    reached = []
+    try:
+        stepper.run(history, 1.0, on_step=lambda r, reached=reached: reached.append(
+            (r.time, r.load, r.diagnostics["J_min"])))
+        msg = "no error"
+    except ConvergenceError as e:
+        msg = str(e)
+    _, d_last, J_last = reached[-1] if reached else (0.0, 0.0, 1.0)
+    return {"case": "5 compaction / Drucker", "method": "TimeStepper, column squeezed",
+            "parameter": "solid", "value": label, "detected": "solid volume fraction" in msg,
+            "last_accepted_settlement_over_H": d_last, "J_min_last_accepted": J_last,
+            "message": msg}
+
+
+def _drucker_sets(unstable) -> list[dict]:
+    """(c) Drucker: the paper's sets and a deliberately unstable one."""
+    rows = []
     for foam in (mat.SKIN, mat.SUBCUTANEOUS, unstable):
         res = drucker_check(foam)
         first = {k: v for k, v in res.first_unstable.items()}
@@ -396,13 +413,18 @@ def compaction_and_drucker(coarse: bool = True) -> list[dict]:
                      "first_unstable_equibiaxial": first["equibiaxial"],
                      "first_unstable_uniaxial": first["uniaxial"],
                      "message": res.describe().replace("\n", " | ")})
+    return rows
+
+
+def _state_checks(unstable) -> list[dict]:
+    """`check_state` on an unstable state of the unstable foam: it warns, or raises."""
     state = np.array([[1.3, 0.95], [1.0, 1.0]])
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         ok = check_state(unstable, state, "column quadrature points", mode="warn")
-    rows.append({"case": "5 compaction / Drucker", "method": "stability.check_state (warn)",
-                 "parameter": "stretches", "value": "[1.3, 0.95]", "detected": not ok,
-                 "message": str(caught[0].message) if caught else "no warning"})
+    rows = [{"case": "5 compaction / Drucker", "method": "stability.check_state (warn)",
+             "parameter": "stretches", "value": "[1.3, 0.95]", "detected": not ok,
+             "message": str(caught[0].message) if caught else "no warning"}]
     try:
         check_state(unstable, state, "column quadrature points", mode="error")
         msg = "no error"
@@ -448,81 +470,99 @@ def _fmt(x) -> str:
 
 def _interpret(case: str, rows: list[dict]) -> str:
     """One line per case, from the measured numbers."""
-    by = {(r["method"], r["value"]): r for r in rows}
     try:
-        if case.startswith("1"):
-            th = next(r for r in rows if r["method"].startswith("Taylor"))
-            p1 = next(r for r in rows if r["method"] == "P1/P1")
-            return (f"P1/P1's pressure checkerboard (RMS deviation from the neighbours' mean) is "
-                    f"{p1['checkerboard_rms'] / th['checkerboard_rms']:.1f}× Taylor–Hood's "
-                    f"({p1['checkerboard_max_off_edge'] / th['checkerboard_max_off_edge']:.1f}× "
-                    "in the max away from the footing edge, whose singularity both see); its "
-                    f"undrained settlement is off by {p1['settlement_error']:.1%} against "
-                    f"{th['settlement_error']:.2%} for Taylor–Hood (reference: Taylor–Hood, "
-                    "mesh halved).")
-        if case.startswith("2"):
-            fails = [f"θ = {r['method'][6:]}, γ0 = {r['value']:g} ({r['reason']})"
-                     for r in rows if not r["converged"]]
-            ok10 = by.get(("theta=+0", 10.0), {})
-            ok100 = by.get(("theta=+0", 100.0), {})
-            bad1 = by.get(("theta=+1", 1.0), {})
-            pen01 = by.get(("theta=+0", 0.1), {}).get("penetration_over_depth", math.nan)
-            return (f"θ = 0, γ0 = 10: {ok10.get('newton_iterations')} Newton iterations in 3 "
-                    f"steps, penetration {ok10.get('penetration_over_depth', math.nan):.1e} of "
-                    f"the depth, Hertz half-width/peak errors "
-                    f"{ok10.get('halfwidth_error', math.nan):.1%}/"
-                    f"{ok10.get('peak_pressure_error', math.nan):.1%}; γ0 = 100 takes "
-                    f"{ok100.get('newton_iterations')} iterations (peak pressure error "
-                    f"{ok100.get('peak_pressure_error', math.nan):.1%}); γ0 = 0.1 lets θ = 0 "
-                    f"penetrate {pen01:.1e}"
-                    " of the depth; θ = +1 below its coercivity threshold (γ0 = 1) converges to "
-                    "a wrong pressure (peak error "
-                    f"{bad1.get('peak_pressure_error', math.nan):.0%}). "
-                    "On this small-strain problem θ = ±1 otherwise match θ = 0 (NOTES.md's "
-                    "θ = +1 divergence / θ = −1 inversion were finite-strain runs: not "
-                    "reproduced here). Failures: " + ("; ".join(fails) or "none") + ".")
-        if case.startswith("3"):
-            ex = rows[0]
-            eps = [r for r in rows if r["method"] == "epsilon in sqrt"]
-            return (f"The exact series is exact to {ex['d2W_rel_error']:.0e} (Jacobian "
-                    f"{ex['jacobian_rel_error']:.0e}); ε in the sqrt gives finite but wrong "
-                    "tangents (" + ", ".join(f"ε = {r['value']:g}: {r['d2W_rel_error']:.1e}"
-                                              for r in eps)
-                    + "); the naive closed form gives NaN.")
-        if case.startswith("4"):
-            parts = []
-            for method in ("Taylor-Hood P2/P1", "P1/P1"):
-                rs = sorted((r for r in rows if r["method"] == method), key=lambda r: r["value"])
-                clean = [r["dt_over_bound"] for r in rs if r["overshoot"] <= 1e-3]
-                worst = max(r["overshoot"] for r in rs)
-                parts.append(f"{method}: overshoot up to {worst:.0%} of the load, none "
-                             f"(≤ 0.1 %) from Δt = {min(clean):.3g}× the bound" if clean else
-                             f"{method}: overshoot at every Δt")
-            return (f"Bound h²/(6c) = {rows[0]['bound_h2_over_6c']:.3g} s "
-                    f"(h = {rows[0]['h']:.4g} mm, c = 1 mm²/s); " + "; ".join(parts)
-                    + ". The overshoot sits at the node next to the drained top (negative "
-                    "values: the column has drained, p_max < load, "
-                    "as in the exact one-step solution; compare overshoot_vs_exact).")
-        if case.startswith("5"):
-            runs = [r for r in rows if r["method"].startswith("TimeStepper")]
-            named = [r["value"] for r in runs if r["detected"]]
-            other = [f"{r['value']}: stopped at J = {r['J_min_last_accepted']:.2f} without "
-                     "naming compaction" for r in runs if not r["detected"]]
-            foams = [r for r in rows if r["method"] == "stability.drucker_check"]
-            return ("The solver stops at once on compaction (J within the margin of phi0 at a "
-                    "quadrature point or a node -> CompactionError naming the time, the place "
-                    "and the permeability) for: " + "; ".join(named) + ". "
-                    + ("; ".join(other) + " (Newton stalls on round-off of the stiff volumetric "
-                       "term J^(-αβ) first). " if other else "")
-                    + "Drucker: " + "; ".join(
-                        f"{r['value']} {'UNSTABLE, first at equibiaxial (compression, tension) '
-                        + _fmt(r['first_unstable_equibiaxial']) if r['detected'] else 'stable on '
-                        'the whole grid'}" for r in foams)
-                    + " (MODEL.md's loss near 0.40/0.45 is not reproduced); check_state warns "
-                    "or raises on an unstable state.")
+        for number, explain in _INTERPRETERS.items():
+            if case.startswith(number):
+                return explain(rows)
     except (StopIteration, KeyError, ValueError, TypeError) as e:  # a case that failed outright
         return f"(no interpretation: {type(e).__name__} {e})"
     return ""
+
+
+def _explain_inf_sup(rows: list[dict]) -> str:
+    th = next(r for r in rows if r["method"].startswith("Taylor"))
+    p1 = next(r for r in rows if r["method"] == "P1/P1")
+    return (f"P1/P1's pressure checkerboard (RMS deviation from the neighbours' mean) is "
+            f"{p1['checkerboard_rms'] / th['checkerboard_rms']:.1f}× Taylor–Hood's "
+            f"({p1['checkerboard_max_off_edge'] / th['checkerboard_max_off_edge']:.1f}× "
+            "in the max away from the footing edge, whose singularity both see); its "
+            f"undrained settlement is off by {p1['settlement_error']:.1%} against "
+            f"{th['settlement_error']:.2%} for Taylor–Hood (reference: Taylor–Hood, "
+            "mesh halved).")
+
+
+def _explain_nitsche(rows: list[dict]) -> str:
+    by = {(r["method"], r["value"]): r for r in rows}
+    fails = [f"θ = {r['method'][6:]}, γ0 = {r['value']:g} ({r['reason']})"
+             for r in rows if not r["converged"]]
+    ok10 = by.get(("theta=+0", 10.0), {})
+    ok100 = by.get(("theta=+0", 100.0), {})
+    bad1 = by.get(("theta=+1", 1.0), {})
+    pen01 = by.get(("theta=+0", 0.1), {}).get("penetration_over_depth", math.nan)
+    return (f"θ = 0, γ0 = 10: {ok10.get('newton_iterations')} Newton iterations in 3 "
+            f"steps, penetration {ok10.get('penetration_over_depth', math.nan):.1e} of "
+            f"the depth, Hertz half-width/peak errors "
+            f"{ok10.get('halfwidth_error', math.nan):.1%}/"
+            f"{ok10.get('peak_pressure_error', math.nan):.1%}; γ0 = 100 takes "
+            f"{ok100.get('newton_iterations')} iterations (peak pressure error "
+            f"{ok100.get('peak_pressure_error', math.nan):.1%}); γ0 = 0.1 lets θ = 0 "
+            f"penetrate {pen01:.1e}"
+            " of the depth; θ = +1 below its coercivity threshold (γ0 = 1) converges to "
+            "a wrong pressure (peak error "
+            f"{bad1.get('peak_pressure_error', math.nan):.0%}). "
+            "On this small-strain problem θ = ±1 otherwise match θ = 0 (NOTES.md's "
+            "θ = +1 divergence / θ = −1 inversion were finite-strain runs: not "
+            "reproduced here). Failures: " + ("; ".join(fails) or "none") + ".")
+
+
+def _explain_tangent(rows: list[dict]) -> str:
+    ex = rows[0]
+    eps = [r for r in rows if r["method"] == "epsilon in sqrt"]
+    return (f"The exact series is exact to {ex['d2W_rel_error']:.0e} (Jacobian "
+            f"{ex['jacobian_rel_error']:.0e}); ε in the sqrt gives finite but wrong "
+            "tangents (" + ", ".join(f"ε = {r['value']:g}: {r['d2W_rel_error']:.1e}"
+                                      for r in eps)
+            + "); the naive closed form gives NaN.")
+
+
+def _explain_time_step(rows: list[dict]) -> str:
+    parts = []
+    for method in ("Taylor-Hood P2/P1", "P1/P1"):
+        rs = sorted((r for r in rows if r["method"] == method), key=lambda r: r["value"])
+        clean = [r["dt_over_bound"] for r in rs if r["overshoot"] <= 1e-3]
+        worst = max(r["overshoot"] for r in rs)
+        parts.append(f"{method}: overshoot up to {worst:.0%} of the load, none "
+                     f"(≤ 0.1 %) from Δt = {min(clean):.3g}× the bound" if clean else
+                     f"{method}: overshoot at every Δt")
+    return (f"Bound h²/(6c) = {rows[0]['bound_h2_over_6c']:.3g} s "
+            f"(h = {rows[0]['h']:.4g} mm, c = 1 mm²/s); " + "; ".join(parts)
+            + ". The overshoot sits at the node next to the drained top (negative "
+            "values: the column has drained, p_max < load, "
+            "as in the exact one-step solution; compare overshoot_vs_exact).")
+
+
+def _explain_compaction(rows: list[dict]) -> str:
+    runs = [r for r in rows if r["method"].startswith("TimeStepper")]
+    named = [r["value"] for r in runs if r["detected"]]
+    other = [f"{r['value']}: stopped at J = {r['J_min_last_accepted']:.2f} without "
+             "naming compaction" for r in runs if not r["detected"]]
+    foams = [r for r in rows if r["method"] == "stability.drucker_check"]
+    return ("The solver stops at once on compaction (J within the margin of phi0 at a "
+            "quadrature point or a node -> CompactionError naming the time, the place "
+            "and the permeability) for: " + "; ".join(named) + ". "
+            + ("; ".join(other) + " (Newton stalls on round-off of the stiff volumetric "
+               "term J^(-αβ) first). " if other else "")
+            + "Drucker: " + "; ".join(
+                f"{r['value']} {'UNSTABLE, first at equibiaxial (compression, tension) '
+                + _fmt(r['first_unstable_equibiaxial']) if r['detected'] else 'stable on '
+                'the whole grid'}" for r in foams)
+            + " (MODEL.md's loss near 0.40/0.45 is not reproduced); check_state warns "
+            "or raises on an unstable state.")
+
+
+#: Each case's sentence, by the case's number (the first character of its name).
+_INTERPRETERS = {"1": _explain_inf_sup, "2": _explain_nitsche, "3": _explain_tangent,
+                 "4": _explain_time_step, "5": _explain_compaction}
 
 
 def write_csv(rows: list[dict], path: Path) -> None:
@@ -558,70 +598,88 @@ def write_markdown(rows: list[dict], path: Path, runtimes: dict | None = None) -
 
 
 def _figures(out: Path, rows: list[dict], profiles1: dict, profiles4: dict) -> list[Path]:
+    """The study's figures (cases 1, 2 and 4, those it has rows or profiles of), written to
+    `out`; returns their paths."""
+    r2 = [r for r in rows if r["case"].startswith("2")]
+    r4 = [r for r in rows if r["case"].startswith("4")]
+    drawn = [_figure_inf_sup(out, profiles1) if profiles1 else None,
+             _figure_nitsche(out, r2) if r2 else None,
+             _figure_time_step(out, r4, profiles4) if r4 else None]
+    return [path for path in drawn if path is not None]
+
+
+def _figure_inf_sup(out: Path, profiles1: dict) -> Path:
+    """Case 1: the pressure along the mid-height row."""
     from matplotlib.figure import Figure
 
-    written = []
-    # case 1: pressure along the mid-height row
-    if profiles1:
-        fig = Figure(figsize=(6, 3.5))
-        ax = fig.subplots()
-        for method, (X, p, sigma0) in profiles1.items():
-            row = np.isclose(X[:, 1], 0.5)
-            order = np.argsort(X[row, 0])
-            ax.plot(X[row, 0][order], p[row][order] / sigma0, "o-", ms=3, label=method)
-        ax.set(xlabel="x (mm), at y = 0.5 mm", ylabel="p / load",
-               title="Undrained strip load, one step Δt = 1 s")
-        ax.legend()
-        fig.tight_layout()
-        written.append(out / "stability_p1p1_vs_taylor_hood.png")
-        fig.savefig(written[-1], dpi=120)
-    # case 2: penetration and iterations against γ0
-    r2 = [r for r in rows if r["case"].startswith("2")]
-    if r2:
-        fig = Figure(figsize=(9, 3.5))
-        (a1, a2) = fig.subplots(1, 2)
-        for method in dict.fromkeys(r["method"] for r in r2):
-            rs = [r for r in r2 if r["method"] == method]
-            g = [r["value"] for r in rs]
-            pen = [r.get("penetration_over_depth", np.nan) for r in rs]
-            line, = a1.loglog(g, pen, "o-", label=method.replace("theta", "θ"))
-            a2.semilogx(g, [r["newton_iterations"] for r in rs], "o-", color=line.get_color(),
-                        label=method.replace("theta", "θ"))
-            for r in rs:
-                if not r["converged"]:
-                    a2.plot(r["value"], r["newton_iterations"], "x", ms=12,
-                            color=line.get_color())
-        a1.set(xlabel="γ0", ylabel="max penetration / indentation")
-        a2.set(xlabel="γ0", ylabel="Newton iterations (3 steps; × = failed)")
-        a1.legend()
-        fig.suptitle("Nitsche contact, rigid cylinder on an elastic block")
-        fig.tight_layout()
-        written.append(out / "stability_nitsche.png")
-        fig.savefig(written[-1], dpi=120)
-    # case 4: overshoot against Δt, bound marked; profiles
-    r4 = [r for r in rows if r["case"].startswith("4")]
-    if r4:
-        fig = Figure(figsize=(10, 3.8))
-        (a1, a2) = fig.subplots(1, 2)
-        for method in dict.fromkeys(r["method"] for r in r4):
-            rs = [r for r in r4 if r["method"] == method]
-            a1.loglog([r["value"] for r in rs], [max(r["overshoot_vs_exact"], 1e-6) for r in rs],
-                      "o-", label=method)
-        bound = r4[0]["bound_h2_over_6c"]
-        a1.axvline(bound, color="k", ls="--", label="h²/(6c)")
-        a1.set(xlabel="Δt (s)", ylabel="(p_max − exact p_max) / load (floor 1e-6)",
-               title="Terzaghi column, first step")
-        a1.legend()
-        for (method, dt), (z, p, exact) in profiles4.items():
-            if abs(math.log10(dt / bound) + 1) < 0.6 or abs(math.log10(dt / bound) - 1) < 0.6:
-                a2.plot(p, z, "o-", ms=3, label=f"{method}, Δt = {dt / bound:.2g}× bound")
-                a2.plot(exact, z, "k:", lw=1)
-        a2.set(xlabel="p / load (dotted: exact one-step)", ylabel="z (mm)", ylim=(0.5, 1.0))
-        a2.legend(fontsize=7, loc="lower left")  # where no profile runs
-        fig.tight_layout()
-        written.append(out / "stability_time_step.png")
-        fig.savefig(written[-1], dpi=120)
-    return written
+    fig = Figure(figsize=(6, 3.5))
+    ax = fig.subplots()
+    for method, (X, p, sigma0) in profiles1.items():
+        row = np.isclose(X[:, 1], 0.5)
+        order = np.argsort(X[row, 0])
+        ax.plot(X[row, 0][order], p[row][order] / sigma0, "o-", ms=3, label=method)
+    ax.set(xlabel="x (mm), at y = 0.5 mm", ylabel="p / load",
+           title="Undrained strip load, one step Δt = 1 s")
+    ax.legend()
+    fig.tight_layout()
+    path = out / "stability_p1p1_vs_taylor_hood.png"
+    fig.savefig(path, dpi=120)
+    return path
+
+
+def _figure_nitsche(out: Path, r2: list[dict]) -> Path:
+    """Case 2: penetration and Newton iterations against γ0."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(9, 3.5))
+    (a1, a2) = fig.subplots(1, 2)
+    for method in dict.fromkeys(r["method"] for r in r2):
+        rs = [r for r in r2 if r["method"] == method]
+        g = [r["value"] for r in rs]
+        pen = [r.get("penetration_over_depth", np.nan) for r in rs]
+        line, = a1.loglog(g, pen, "o-", label=method.replace("theta", "θ"))
+        a2.semilogx(g, [r["newton_iterations"] for r in rs], "o-", color=line.get_color(),
+                    label=method.replace("theta", "θ"))
+        for r in rs:
+            if not r["converged"]:
+                a2.plot(r["value"], r["newton_iterations"], "x", ms=12,
+                        color=line.get_color())
+    a1.set(xlabel="γ0", ylabel="max penetration / indentation")
+    a2.set(xlabel="γ0", ylabel="Newton iterations (3 steps; × = failed)")
+    a1.legend()
+    fig.suptitle("Nitsche contact, rigid cylinder on an elastic block")
+    fig.tight_layout()
+    path = out / "stability_nitsche.png"
+    fig.savefig(path, dpi=120)
+    return path
+
+
+def _figure_time_step(out: Path, r4: list[dict], profiles4: dict) -> Path:
+    """Case 4: the overshoot against Δt with the bound marked; profiles near 0.1 and 10
+    times the bound."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(10, 3.8))
+    (a1, a2) = fig.subplots(1, 2)
+    for method in dict.fromkeys(r["method"] for r in r4):
+        rs = [r for r in r4 if r["method"] == method]
+        a1.loglog([r["value"] for r in rs], [max(r["overshoot_vs_exact"], 1e-6) for r in rs],
+                  "o-", label=method)
+    bound = r4[0]["bound_h2_over_6c"]
+    a1.axvline(bound, color="k", ls="--", label="h²/(6c)")
+    a1.set(xlabel="Δt (s)", ylabel="(p_max − exact p_max) / load (floor 1e-6)",
+           title="Terzaghi column, first step")
+    a1.legend()
+    for (method, dt), (z, p, exact) in profiles4.items():
+        if abs(math.log10(dt / bound) + 1) < 0.6 or abs(math.log10(dt / bound) - 1) < 0.6:
+            a2.plot(p, z, "o-", ms=3, label=f"{method}, Δt = {dt / bound:.2g}× bound")
+            a2.plot(exact, z, "k:", lw=1)
+    a2.set(xlabel="p / load (dotted: exact one-step)", ylabel="z (mm)", ylim=(0.5, 1.0))
+    a2.legend(fontsize=7, loc="lower left")  # where no profile runs
+    fig.tight_layout()
+    path = out / "stability_time_step.png"
+    fig.savefig(path, dpi=120)
+    return path
 
 
 def run_stability_study(out: Path, *, coarse: bool = True, comm=MPI.COMM_WORLD) -> list[dict]:

@@ -33,8 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
-from ..outputs import read_csv
+from .errors import InputError
+from .outputs import read_csv
 
 #: The depth (mm below the undeformed outer surface) of the key outputs' depth curve.
 KEY_DEPTH = 0.75
