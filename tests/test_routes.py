@@ -14,9 +14,9 @@ import fingertip_dolfinx as ft
 from fingertip_dolfinx import adaptivity, frequency_response, runner
 from fingertip_dolfinx.cli import main
 from fingertip_dolfinx.errors import InputError
+from fingertip_dolfinx.keys import KEYS
 from fingertip_dolfinx.outputs import read_csv
 from fingertip_dolfinx.studies.fidelity import LADDER
-from fingertip_dolfinx.studies.keys import KEYS
 
 #: A coarse one-point run in steps of 0.5 s, no pictures: ~20 s.
 SETS = ["section.mesh.min_size=0.4", "section.mesh.max_size=1.5", "section.mesh.bone_size=2.0",
