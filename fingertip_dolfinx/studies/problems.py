@@ -43,15 +43,16 @@ from mpi4py import MPI
 
 from .. import materials as mat
 from ..admissibility import Admissibility, Compaction
-from ..contact import NitscheContact, Obstacle, p_wave_modulus
+from ..contact import NitscheContact, Obstacle
 from ..harmonic import Linearisation, ViscousPart, complex_modulus, qlv_tangent
 from ..indenters import Cylinder, Sphere
 from ..inertia import Inertia
 from ..kinematics import deformation_gradient
 from ..loading import RampHold
-from ..mesh import CELL_TAGS, FACET_TAGS, FingertipMesh
+from ..mesh import CELL_TAGS, FACET_TAGS_3D, FingertipMesh
 from ..poroelasticity import biphasic_residuals
 from ..solver import DEFAULT_PETSC_OPTIONS, StepOptions, TimeStepper
+from ..state import SteppableState
 from ..viscoelasticity import QuasiLinearViscoelasticity
 
 #: Quadrature degree of the block's volume terms: the hyperfoam stress is not polynomial.
@@ -61,11 +62,10 @@ QUADRATURE_DEGREE = 4
 # ---- closed forms ----------------------------------------------------------------------------
 
 
-def confined_modulus(solid) -> float:
-    """M = K0 + 4μ0/3 (MPa): the small-strain stiffness of a laterally confined column (the
-    P-wave or aggregate modulus). With a permeability k, c = k M (mm²/s) is the consolidation
-    coefficient and H²/c the drainage time of a layer H."""
-    return solid.K0 + 4 * solid.mu0 / 3
+#: M = K0 + 4μ0/3 (MPa): the small-strain stiffness of a laterally confined column (the
+#: P-wave or aggregate modulus). With a permeability k, c = k M (mm²/s) is the consolidation
+#: coefficient and H²/c the drainage time of a layer H.
+confined_modulus = mat.small_strain_p_wave_modulus
 
 
 def confined_drained_stress(solid, lam: float) -> np.ndarray:
@@ -217,7 +217,7 @@ def _small_strain_stress(solid: mat.LinearElastic, u) -> ufl.core.expr.Expr:
     return solid.lmbda * ufl.tr(eps) * ufl.Identity(len(u)) + 2 * solid.mu * eps
 
 
-class ConfinedBlock:
+class ConfinedBlock(SteppableState):
     """A Steppable block [0, W] × [0, H] (mm) on rollers: u_x = 0 on the sides, u_y = 0 at the
     bottom, so that a load over the whole top gives the one-dimensional confined state.
 
@@ -282,11 +282,11 @@ class ConfinedBlock:
         self.residuals = self._residuals(S_total if small_strain else F * S_total)
         self.bcs = self._bcs(drained_top)
         self.entity_maps = None
-        self._last = [f.x.array.copy() for f in self.unknowns]
         cells = np.arange(self.msh.topology.index_map(gdim).size_local, dtype=np.int32)
         self.admissibility = Admissibility(F, self.msh, QUADRATURE_DEGREE, None if tissue is None
                                            else Compaction(cells, tissue.phi0, compaction_margin,
                                                            tissue.permeability.k0))
+        self.mark_accepted()
         centroid = np.full((1, gdim), 1 / (gdim + 1))
         self._J = fem.Expression(ufl.det(F), centroid)  # at the centroids
         self._settle = fem.form(-self.u[1] * self.ds(1))
@@ -350,41 +350,9 @@ class ConfinedBlock:
     def set_time(self, t):
         self.value.value = -self.load(t) if self.top_displacement else self.load(t)
 
-    def accept(self):
-        if self.qlv is not None:
-            self.qlv.advance()
-        if self.inertia is not None:
-            self.inertia.advance()
-        self.u_nm1.x.array[:] = self.u_n.x.array
-        self.u_n.x.array[:] = self.u.x.array
-        self._last = [f.x.array.copy() for f in self.unknowns]
-
-    def mark_accepted(self):
-        self._last = [f.x.array.copy() for f in self.unknowns]
-
-    def state_arrays(self) -> dict[str, np.ndarray]:
-        """The live arrays that define the state (the time stepper's error control saves and
-        restores them around a trial step)."""
-        arrays = {"u": self.u.x.array, "u_n": self.u_n.x.array, "u_nm1": self.u_nm1.x.array}
-        if self.p is not None:
-            arrays["p"] = self.p.x.array
-        if self.inertia is not None:
-            arrays |= self.inertia.arrays()
-        if self.qlv is not None:
-            arrays |= {f"qlv_{i}": f.x.array for i, f in enumerate([*self.qlv.h, self.qlv.S_e_n])}
-        return arrays
-
-    def restore(self):
-        for f, saved in zip(self.unknowns, self._last):
-            f.x.array[:] = saved
-
-    def inadmissible(self) -> str | None:
-        """Inverted cells, or a tissue within the margin of compaction (J = φ0)."""
-        return self.admissibility.violation()
-
-    def compacted(self, margin: float | None = None, nodes: bool = True):
-        """The tissue's lowest J if within `margin` (the block's by default) of φ0, else None."""
-        return self.admissibility.compacted(margin, nodes)
+    def histories(self) -> list:
+        """The solid's QLV history, if it relaxes."""
+        return [] if self.qlv is None else [self.qlv]
 
     def diagnostics(self) -> dict[str, float]:
         out = {"settlement": self.settlement(), "J_min": self.min_jacobian()[0],
@@ -431,10 +399,6 @@ class ConfinedBlock:
         cells = np.arange(n, dtype=np.int32)
         centres = self.msh.geometry.x[self.msh.geometry.dofmaps[0][cells]].mean(axis=1)
         return self._J.eval(self.msh, cells).reshape(n), centres
-
-    def min_jacobian(self) -> tuple[float, np.ndarray]:
-        """The smallest J at the quadrature points and vertices over every rank, and where."""
-        return self.admissibility.min_jacobian()
 
     def core_J_change(self) -> float:
         """max |J − 1| at the centroids of the lower half: the core, away from a drained top."""
@@ -809,7 +773,7 @@ class Hertz:
     @property
     def modulus(self) -> float:
         """λ + 2μ (MPa): the M of Nitsche's γ = γ0 M/h."""
-        return p_wave_modulus(self.E, self.nu)
+        return mat.p_wave_modulus(self.E, self.nu)
 
     def theory(self, force: float) -> tuple[float, float]:
         """Hertz half-width a (mm) and peak pressure p0 (MPa) for the whole cylinder's force."""
@@ -1050,8 +1014,6 @@ def contact_edge(x: np.ndarray, trial: np.ndarray) -> float:
 
 # ---- a layered 3D block with the fingertip's tags ---------------------------------------------
 
-#: The 3D facet tags agreed in issue 13 (the 3D mesh module adds them to mesh.FACET_TAGS).
-TAGS_3D = {"symmetry": 15, "proximal_cut": 16}
 #: Slab tops (mm) of the layered block from its bottom y = −3: skin 0.5 mm, subcutaneous 3 mm,
 #: bone 0.5 mm, nail 0.5 mm (round numbers of the section's proportions, not its geometry).
 LAYERS = (("skin", -2.5), ("subcutaneous", 0.5), ("bone", 1.0), ("nail", 1.5))
@@ -1076,8 +1038,8 @@ def layered_block(comm=MPI.COMM_SELF, *, half_width: float = 3.0, length: float 
     regions = np.array([CELL_TAGS[name] for name, _ in LAYERS])[np.searchsorted(tops, y)]
     cell_tags = mesh.meshtags(msh, tdim, cells, regions.astype(np.int32))
     facet_tags = mesh.meshtags(msh, tdim - 1, *_block_facets(msh, y0, y1, centre_half_width))
-    names = {**CELL_TAGS, **{k: FACET_TAGS[k] for k in (
-        "pulp_surface", "outer_surface", "nail_centre")}, **TAGS_3D}
+    names = {**CELL_TAGS, **{k: FACET_TAGS_3D[k] for k in (
+        "pulp_surface", "outer_surface", "nail_centre", "symmetry", "proximal_cut")}}
     return FingertipMesh(msh, cell_tags, facet_tags, names)
 
 
@@ -1087,12 +1049,12 @@ def _block_facets(msh, y0: float, y1: float, centre_half_width: float):
     msh.topology.create_connectivity(fdim, fdim + 1)
     facets = mesh.exterior_facet_indices(msh.topology)
     x = mesh.compute_midpoints(msh, fdim, facets)
-    tags = np.full(len(facets), FACET_TAGS["outer_surface"], dtype=np.int32)
+    tags = np.full(len(facets), FACET_TAGS_3D["outer_surface"], dtype=np.int32)
     for name, on in (("symmetry", np.isclose(x[:, 0], 0.0)),
                      ("proximal_cut", np.isclose(x[:, 2], 0.0)),
                      ("pulp_surface", np.isclose(x[:, 1], y0)),
                      ("nail_centre", np.isclose(x[:, 1], y1) & (x[:, 0] < centre_half_width))):
-        tags[on] = {**FACET_TAGS, **TAGS_3D}[name]
+        tags[on] = FACET_TAGS_3D[name]
     return facets.astype(np.int32), tags
 
 
