@@ -23,11 +23,11 @@ def _chain() -> dict[str, int]:
 def _imports(path: Path) -> set[str]:
     """The package modules `path` imports (relative imports, first component)."""
     names = set()
+    depth = len(path.relative_to(PACKAGE).parts) - 1  # 1 in studies/, 2 in studies/problems/
     for node in ast.walk(ast.parse(path.read_text())):
         if isinstance(node, ast.ImportFrom) and node.level > 0:
-            inside_studies = path.parent.name == "studies"
-            if inside_studies and node.level == 1:
-                continue  # a study importing its sibling
+            if node.level <= depth:
+                continue  # a study importing a module of studies/
             names.add((node.module or "").split(".")[0] or node.names[0].name)
     return names - {"__version__"}
 
@@ -41,8 +41,8 @@ def test_every_module_is_in_the_chain():
 def test_modules_import_only_modules_above_them():
     rank = _chain()
     wrong = []
-    for path in [*PACKAGE.glob("*.py"), *(PACKAGE / "studies").glob("*.py")]:
-        me = "studies" if path.parent.name == "studies" else path.stem
+    for path in [*PACKAGE.glob("*.py"), *(PACKAGE / "studies").rglob("*.py")]:
+        me = path.relative_to(PACKAGE).parts[0].removesuffix(".py")
         if me == "__init__":
             continue
         for name in _imports(path):
