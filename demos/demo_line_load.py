@@ -102,6 +102,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import fingertip_dolfinx as ft
+from fingertip_dolfinx.materials import small_strain_p_wave_modulus
 
 COARSE = os.environ.get("FINGERTIP_DEMO_COARSE", "") not in ("", "0") or "--coarse" in sys.argv
 OUT = Path(os.environ.get("FINGERTIP_DEMO_OUT", "results/demos/line_load"))
@@ -144,7 +145,7 @@ print(f"  mesh: min_size {scene.section.mesh.min_size} mm, tip disc {scene.secti
 
 # %%
 sub = scene.materials.subcutaneous
-H_A = sub.solid.K0 + 4.0 * sub.solid.mu0 / 3.0  # MPa
+H_A = small_strain_p_wave_modulus(sub.solid)  # K0 + 4 mu0/3, MPa
 k0 = sub.permeability.k0  # mm^4/(N s)
 for L in (1.0, 2.0, 6.0):
     print(f"  L = {L:3.1f} mm: t_d = L^2/(H_A k0) = {L**2 / (H_A * k0):.1e} s")

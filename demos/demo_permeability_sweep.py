@@ -95,6 +95,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import fingertip_dolfinx as ft
+from fingertip_dolfinx.materials import small_strain_p_wave_modulus
 from fingertip_dolfinx.mesh import CELL_TAGS
 
 COARSE = os.environ.get("FINGERTIP_DEMO_COARSE", "") not in ("", "0") or "--coarse" in sys.argv
@@ -143,7 +144,7 @@ for label, change in cases.items():
 
 # %%
 solid = scene.materials.subcutaneous.solid
-H_A = solid.K0 + 4.0 * solid.mu0 / 3.0
+H_A = small_strain_p_wave_modulus(solid)  # K0 + 4 mu0/3, MPa
 L = 2.0
 t_drain = {k0: L**2 / (H_A * k0) for k0 in K0S}
 print(f"H_A = {H_A:.3e} MPa")

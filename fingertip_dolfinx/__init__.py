@@ -29,12 +29,13 @@ The names below are imported on first use, so that `import fingertip_dolfinx` (a
 
 from importlib import import_module
 
-try:  # The PyPI wheel's PETSc must be set up before dolfinx or petsc4py is imported.
+# The PyPI wheel's PETSc must be set up before dolfinx or petsc4py is imported. Python runs
+# this file before any module of the package (`import fingertip_dolfinx.mesh` imports the
+# package first), so no module needs to import the package root for it.
+try:
     import dolfinx_solver  # noqa: F401
 except ImportError:  # DOLFINx from conda or the official images needs no set-up.
     pass
-
-__version__ = "0.1.0"
 
 #: Public name -> the module that defines it.
 _API = {
@@ -68,7 +69,28 @@ _API = {
 __all__ = sorted(_API)
 
 
+def _version() -> str:
+    """The version pyproject.toml gives (its one place): the installed distribution's, or in
+    a source tree that is not installed, read from the tree's pyproject.toml."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("fingertip-dolfinx")
+    except PackageNotFoundError:
+        import tomllib
+        from pathlib import Path
+
+        try:
+            with (Path(__file__).resolve().parents[1] / "pyproject.toml").open("rb") as f:
+                return tomllib.load(f)["project"]["version"]
+        except (OSError, KeyError, tomllib.TOMLDecodeError):
+            return "0+unknown"
+
+
 def __getattr__(name: str):
+    if name == "__version__":  # read on first use: `import fingertip_dolfinx` stays fast
+        globals()[name] = _version()
+        return globals()[name]
     if name not in _API:
         raise AttributeError(f"module 'fingertip_dolfinx' has no attribute {name!r}")
     value = getattr(import_module(f".{_API[name]}", __name__), name)

@@ -20,7 +20,7 @@ from mpi4py import MPI
 from .errors import InputError
 from .geometry3d import Fingertip3D
 from .mesh import build_mesh
-from .problem import _first_touch
+from .problem import first_touch
 from .runner import check_reach
 from .scene import Scene, blamed, load_scene
 
@@ -115,7 +115,7 @@ def _mesh_and_reach(scene: Scene, comm: MPI.Comm) -> str:
     X = mesh.geometry.x[np.unique(nodes), :2]
     points = np.concatenate(comm.allgather(X))
     stand_in = SimpleNamespace(pulp_nodes=lambda: (X, X), mesh=mesh, mirror_factor=1,
-                               y_touch=_first_touch(points, scene.indenters))
+                               y_touch=first_touch(points, scene.indenters))
     check_reach(stand_in, scene)
     return (f"mesh: {fmesh.report.num_cells} {fmesh.report.cell_type}s built in {seconds:.1f} s; "
             f"every indenter reaches the skin by {scene.history.deepest:g} mm")

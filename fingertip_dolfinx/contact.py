@@ -77,11 +77,6 @@ class TipResolutionWarning(UserWarning):
     """The mesh is too coarse at an indenter's tip: the tip can pierce the surface."""
 
 
-def p_wave_modulus(E, nu):
-    """λ + 2μ = E (1 − ν) / ((1 + ν)(1 − 2ν)): the stiffness of a laterally confined push."""
-    return E * (1 - nu) / ((1 + nu) * (1 - 2 * nu))
-
-
 @dataclass(frozen=True)
 class Obstacle:
     """An indenter in the scene: the loading moves it by setting `y_tip.value`."""

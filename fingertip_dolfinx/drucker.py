@@ -85,8 +85,8 @@ def is_stable(material: Hyperfoam, stretches, plane_strain: bool = True) -> np.n
 
 #: Homogeneous test paths, one letter per principal axis: 's' the stretch parameter, 't' a free
 #: axis (zero stress), '1' held. Plane strain lists the in-plane axes (λ3 = 1 is added later).
-_PATHS_PLANE = {"equibiaxial": "ss", "uniaxial": "st"}
-_PATHS_3D = {"equibiaxial": "sst", "uniaxial": "stt", "planar": "s1t", "volumetric": "sss"}
+PATHS_PLANE = {"equibiaxial": "ss", "uniaxial": "st"}
+PATHS_3D = {"equibiaxial": "sst", "uniaxial": "stt", "planar": "s1t", "volumetric": "sss"}
 
 
 def _free_stretch(material: Hyperfoam, s: np.ndarray, n_s: int, n_f: int) -> np.ndarray:
@@ -133,7 +133,7 @@ def _newton_free(mu, al, b, n_s_log_s: float, n_f: int, x: float) -> float:
     return np.nan
 
 
-def _paths(material: Hyperfoam, plane_strain: bool) -> dict:
+def loading_paths(material: Hyperfoam, plane_strain: bool) -> dict:
     """Test paths: name -> (s ↦ principal stretches), the free axes' stresses zero."""
     def path(axes: str):
         def stretches(s):
@@ -144,7 +144,7 @@ def _paths(material: Hyperfoam, plane_strain: bool) -> dict:
         return stretches
 
     return {name: path(axes)
-            for name, axes in (_PATHS_PLANE if plane_strain else _PATHS_3D).items()}
+            for name, axes in (PATHS_PLANE if plane_strain else PATHS_3D).items()}
 
 
 @dataclass(frozen=True)
@@ -198,7 +198,7 @@ def drucker_check(material: Hyperfoam, plane_strain: bool = True,
     first = {}
     down = np.arange(1.0, lo - 1e-12, -path_step)[1:]
     up = np.arange(1.0, hi + 1e-12, path_step)[1:]
-    for name, path in _paths(material, plane_strain).items():
+    for name, path in loading_paths(material, plane_strain).items():
         found = []
         for s in (down, up):
             ok = is_stable(material, path(s), plane_strain)

@@ -454,7 +454,7 @@ def _render(section_grid, field_grid, scale: ColourScale, indenters, window, pat
         plotter.close()
 
 
-def _value_text(label: str, value: float) -> str:
+def value_text(label: str, value: float) -> str:
     """A value of the field labelled `label` in its own readable unit ("20.1 kPa", "268 Pa");
     a strain as it is ("-0.325", "-3.25e-04")."""
     unit = unit_of(label)
@@ -471,7 +471,7 @@ def _mark_extremes(plotter, draw, extremes: list[Extreme], label: str) -> list:
     (x0, x1), (y0, y1) = draw.window
     offset = 0.015 * max(x1 - x0, y1 - y0)  # the label up and right of the marker
     for e in extremes:
-        value = f"{e.kind} {_value_text(label, e.value)}"
+        value = f"{e.kind} {value_text(label, e.value)}"
         rings = (((0.5, 1.3), "white"), ((0.7, 1.1), "black"), ((0.0, 0.25), "black"))
         for radii, colour in rings:  # a ring with a dot, outlined in white: seen on any colour
             draw.z += draw.dz

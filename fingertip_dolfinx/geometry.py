@@ -505,12 +505,14 @@ def load_section(source: str | Path = "male-index", overrides: dict | None = Non
             raise InputError(f"section.{table}", "must be a table.", f"write [section.{table}].")
         data[table] = {**data.get(table, {}), **values}
     try:
-        return _section_from_dict(data, name=path.stem)
+        return section_from_dict(data, name=path.stem)
     except InputError as e:
         raise InputError(f"{path}, key {e.where}", e.problem, e.fix) from None
 
 
-def _section_from_dict(data: dict, name: str) -> Section:
+def section_from_dict(data: dict, name: str) -> Section:
+    """A `Section` from the tables of a section file (`[outer]`, `[bone]`, `[nail]`, `[mesh]`
+    and the top level, in the file's units), validated; `geometry3d` reads its 2D part so."""
     parts: dict[str, dict[str, object]] = {"outer": {}, "bone": {}, "nail": {}, "mesh": {}, "": {}}
     for table, values in data.items():
         if table not in _KEYS or not isinstance(values, dict):

@@ -32,7 +32,7 @@ import numpy as np
 
 from .datafiles import read_toml
 from .errors import InputError
-from .geometry import MIN_TISSUE_GAP, MeshOptions, Section, _section_from_dict, section_path
+from .geometry import MIN_TISSUE_GAP, MeshOptions, Section, section_from_dict, section_path
 from .validation import check_keys, number, positive
 
 #: The 3D keys of each table; every other key allowed is one of the 2D section's.
@@ -380,4 +380,4 @@ def _fingertip_from_dict(data: dict, name: str) -> Fingertip3D:
         flat[table] = {k: v for k, v in values.items() if k in _KEYS_2D[table]}
         kwargs |= {_KEYS_3D[table][k]: v for k, v in values.items() if k not in _KEYS_2D[table]}
     flat["mesh"] = {**dataclasses.asdict(DEFAULT_MESH_3D), **flat.get("mesh", {})}
-    return Fingertip3D(section=_section_from_dict(flat, name), name=name, **top, **kwargs)
+    return Fingertip3D(section=section_from_dict(flat, name), name=name, **top, **kwargs)

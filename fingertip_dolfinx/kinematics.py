@@ -48,10 +48,6 @@ def jacobian(F) -> ufl.core.expr.Expr:
     return ufl.det(F)
 
 
-def green_lagrange(F) -> ufl.core.expr.Expr:
-    return 0.5 * (right_cauchy_green(F) - ufl.Identity(F.ufl_shape[0]))
-
-
 def _derivatives(f: ScalarFn, m, order: int) -> list:
     """[f(m), f'(m), ..., f^(order)(m)] as UFL, by symbolic differentiation of f."""
     mv = ufl.variable(m)
@@ -155,12 +151,6 @@ def principal_log_strains(F) -> tuple:
     C = right_cauchy_green(F)
     c_max, c_min = principal_values_3d(C) if C.ufl_shape == (3, 3) else principal_values_2d(C)
     return 0.5 * ufl.ln(c_max), 0.5 * ufl.ln(c_min)
-
-
-def principal_stretches_2d(C) -> tuple:
-    """In-plane principal stretches (λ_max, λ_min). Values only: not for differentiation."""
-    c_max, c_min = principal_values_2d(C)
-    return ufl.sqrt(c_max), ufl.sqrt(c_min)
 
 
 #: |r| above which `_eigen_sum_3d` leaves the trigonometric (Cardano) form for the pair

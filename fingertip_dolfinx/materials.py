@@ -307,6 +307,28 @@ class LinearElastic:
         return 0.5 * self.lmbda * ufl.tr(E) ** 2 + self.mu * ufl.inner(E, E)
 
 
+def p_wave_modulus(E, nu):
+    """λ + 2μ = E (1 − ν) / ((1 + ν)(1 − 2ν)): the stiffness of a laterally confined push."""
+    return E * (1 - nu) / ((1 + nu) * (1 - 2 * nu))
+
+
+def small_strain_p_wave_modulus(material: Hyperfoam | LinearElastic) -> float:
+    """λ0 + 2μ0, the stiffness of a laterally confined push at small strain (MPa): the
+    contact's stiffness scale, and the aggregate modulus H_A (or M) of consolidation: with a
+    permeability k, c = k H_A (mm²/s) is the consolidation coefficient and L²/c the drainage
+    time of a layer L.
+
+    Hyperfoam: K0 + 4μ0/3, which holds in plane strain as in 3D and needs no single ν. For the
+    paper's skin it is 6.96e-3 MPa, 1 ulp (2.5e-16) above E(1 − ν)/((1 + ν)(1 − 2ν)) with
+    E = 2μ0(1 + ν), used before; through γ that moved the 1pt scene's forces by 2e-12
+    (Nitsche) and 8e-12 (penalty, γ0 = 100) relative: Newton's converged iterate, not the
+    solution, carries the rounding.
+    """
+    if isinstance(material, LinearElastic):
+        return material.lmbda + 2.0 * material.mu
+    return material.K0 + 4.0 * material.mu0 / 3.0
+
+
 # --------------------------------------------------------------------------------------------
 # stresses from any material with strain_energy(C)
 

@@ -27,8 +27,6 @@ from dolfinx import fem, io
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
-
 from .geometry import Section
 
 CELL_TAGS = {"skin": 1, "subcutaneous": 2, "bone": 3, "nail": 4}
@@ -162,7 +160,7 @@ def build_mesh(
     say = progress if progress is not None and comm.rank == 0 else (lambda message: None)
     if size is None and section.mesh.size_map and comm.rank == 0:
         size = SizeMap.load(section.mesh.size_map)
-    with _gmsh_model() if comm.rank == 0 else contextlib.nullcontext():
+    with gmsh_model() if comm.rank == 0 else contextlib.nullcontext():
         report = _generate(section, say, size) if comm.rank == 0 else None
         say("distributing the mesh")
         data = io.gmsh.model_to_mesh(gmsh.model, comm, 0, gdim=2)
@@ -172,7 +170,7 @@ def build_mesh(
 
 
 @contextlib.contextmanager
-def _gmsh_model():
+def gmsh_model():
     """A fresh gmsh model; gmsh is initialised (and finalised) here unless a caller already did."""
     owner = not gmsh.isInitialized()
     if owner:
@@ -203,12 +201,13 @@ def _generate(section: Section, say: Callable[[str], None],
     return _report(section, time.perf_counter() - start)
 
 
-def _ellipse_loop(occ, e, z: float = 0.0) -> int:
+def ellipse_loop(occ, e, z: float = 0.0) -> int:
     """The ellipse `e` as a closed curve loop in the plane at height z (3D models, mesh3d.py)."""
-    return occ.addCurveLoop([_ellipse_curve(occ, e, z)])
+    return occ.addCurveLoop([ellipse_curve(occ, e, z)])
 
 
-def _ellipse_curve(occ, e, z: float = 0.0) -> int:
+def ellipse_curve(occ, e, z: float = 0.0) -> int:
+    """The ellipse `e` (`geometry.Ellipse`) as one closed gmsh OCC curve at height z."""
     # gmsh 4.15 segfaults offsetting an ellipse whose radii agree to ~1e-9: draw a circle.
     if abs(e.a - e.b) <= 1e-7 * max(e.a, e.b):
         return occ.addCircle(0.0, e.cy, z, 0.5 * (e.a + e.b))
@@ -221,14 +220,14 @@ def _ellipse_curve(occ, e, z: float = 0.0) -> int:
 def _add_geometry(section: Section) -> tuple[dict[str, list[int]], dict[str, list[int]]]:
     """Build and fragment the regions; return region -> surfaces and facet name -> curves."""
     occ = gmsh.model.occ
-    outer_loop = _ellipse_loop(occ, section.outer)
+    outer_loop = ellipse_loop(occ, section.outer)
     # Offsets of the counter-clockwise ellipse: negative is inward.
     inward = occ.offsetCurve(outer_loop, -section.skin_thickness)
     skin_loop = occ.addCurveLoop([c for _, c in inward])
     outer_disk = occ.addPlaneSurface([outer_loop])
     inner_disk = occ.addPlaneSurface([skin_loop])
-    bone_disk = occ.addPlaneSurface([_ellipse_loop(occ, section.bone)])
-    nail = _add_nail(occ, section, outer_loop, outer_disk)
+    bone_disk = occ.addPlaneSurface([ellipse_loop(occ, section.bone)])
+    nail = add_nail(occ, section, outer_loop, outer_disk)
 
     # Vertices where the boundary tags change: the ends of the pulp and of the refinement zone
     # on the outer ellipse, and the nail-centre patch (its middle point included).
@@ -251,7 +250,7 @@ def _add_geometry(section: Section) -> tuple[dict[str, list[int]], dict[str, lis
     return regions, _classify_curves(section, regions)
 
 
-def _add_nail(occ, section: Section, outer_loop: int, outer_disk: int) -> int:
+def add_nail(occ, section: Section, outer_loop: int, outer_disk: int) -> int:
     """The nail plate: the band outside the outer ellipse, cut along the normals at its ends."""
     band = occ.addCurveLoop([c for _, c in occ.offsetCurve(outer_loop, section.nail.thickness)])
     annulus, _ = occ.cut(

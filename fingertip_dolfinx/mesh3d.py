@@ -5,7 +5,7 @@ What is exact and what is approximate (the CAD; the mesh's vertices lie on these
 - on the cylindrical part (0 <= z <= L) everything is exact: the outer elliptic cylinder; the
   skin's inner surface, the extrusion of the section's inward offset curve (OpenCASCADE's
   exact parallel curve, as in 2D); the bone, a ruled loft between two ellipses (an exact
-  elliptic-cone frustum); the nail, the 2D nail plate (mesh._add_nail) extruded along z;
+  elliptic-cone frustum); the nail, the 2D nail plate (mesh.add_nail) extruded along z;
 - the rounded ends (the outer tip cap, the skin's inner cap, the bone's end) are lofts
   (`_dome`, `addThruSections`) through exact copies of the cross-section scaled by cos(alpha)
   at z0 + length sin(alpha), alpha = 0 .. 88 deg, closed by a flat disc: the sections of the
@@ -38,8 +38,6 @@ import numpy as np
 from dolfinx import io
 from mpi4py import MPI
 
-import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
-
 from .geometry import Ellipse
 from .geometry3d import Fingertip3D, ellipsoid_distance
 from .mesh import (
@@ -48,11 +46,11 @@ from .mesh import (
     SIZE_GROWTH,
     FingertipMesh,
     MeshReport,
-    _add_nail,
-    _ellipse_curve,
-    _ellipse_loop,
-    _gmsh_model,
+    add_nail,
     element_report,
+    ellipse_curve,
+    ellipse_loop,
+    gmsh_model,
     graded_size,
     region_areas,
 )
@@ -86,7 +84,7 @@ def build_mesh3d(tip: Fingertip3D, comm: MPI.Comm = MPI.COMM_WORLD,
         The distributed tetrahedral mesh with its cell and facet tags.
     """
     say = progress if progress is not None and comm.rank == 0 else (lambda message: None)
-    with _gmsh_model() if comm.rank == 0 else contextlib.nullcontext():
+    with gmsh_model() if comm.rank == 0 else contextlib.nullcontext():
         report = _generate(tip, say) if comm.rank == 0 else None
         say("distributing the mesh")
         data = io.gmsh.model_to_mesh(gmsh.model, comm, 0, gdim=3)
@@ -117,8 +115,8 @@ def add_geometry(tip: Fingertip3D) -> tuple[dict[str, list[int]], dict[str, list
     """Build and fragment the regions (in the current gmsh model); return region -> volumes and
     facet name -> surfaces."""
     occ, s = gmsh.model.occ, tip.section
-    nail_loop = _ellipse_loop(occ, s.outer)
-    nail = _add_nail(occ, s, nail_loop, occ.addPlaneSurface([nail_loop]))
+    nail_loop = ellipse_loop(occ, s.outer)
+    nail = add_nail(occ, s, nail_loop, occ.addPlaneSurface([nail_loop]))
     nail = _extrude(occ, nail, tip.nail_start_z, tip.nail_end_z)
     outer = _outer_solid(occ, tip)
     inner = _inner_solid(occ, tip)
@@ -225,7 +223,7 @@ def _quarter_arcs(occ, e: Ellipse) -> list[tuple[int, int]]:
 def _inner_solid(occ, tip: Fingertip3D) -> list[tuple[int, int]]:
     """The solid bounded by the skin's inner surface (see the module's docstring)."""
     t, L, c = tip.section.skin_thickness, tip.cylinder_length, tip.tip_length
-    offset = occ.offsetCurve(_ellipse_loop(occ, tip.outer), -t)  # exact parallel curve, inward
+    offset = occ.offsetCurve(ellipse_loop(occ, tip.outer), -t)  # exact parallel curve, inward
     face = occ.addPlaneSurface([occ.addCurveLoop([k for _, k in offset])])
     return _glue(occ, _extrude(occ, face, 0.0, L), _dome(occ, offset, 0.0, L, c - t))
 
@@ -238,9 +236,9 @@ def _bone(occ, tip: Fingertip3D) -> list[tuple[int, int]]:
     # with the worst tetrahedra (minSICN 0.04) next to it. Quarter arcs, as for the skin, lost
     # it but broke the meshing of the rounded end at h = 0.8 mm.)
     end = Ellipse(k * bone.a, k * bone.b, bone.cy)
-    loft = occ.addThruSections([_ellipse_loop(occ, bone), _ellipse_loop(occ, end, z_e)],
+    loft = occ.addThruSections([ellipse_loop(occ, bone), ellipse_loop(occ, end, z_e)],
                                makeSolid=True, makeRuled=True)
-    dome = _dome(occ, [(1, _ellipse_curve(occ, end))], bone.cy, z_e, tip.bone_end_length)
+    dome = _dome(occ, [(1, ellipse_curve(occ, end))], bone.cy, z_e, tip.bone_end_length)
     return _glue(occ, [e for e in loft if e[0] == 3], dome)
 
 
@@ -332,7 +330,7 @@ def cap_deviations(tip: Fingertip3D, samples: int = 30) -> dict[str, tuple[float
     inner points to it (the ideal is the skin thickness everywhere).
     """
     L, axes = tip.cylinder_length, (tip.outer.a, tip.outer.b, tip.tip_length)
-    with _gmsh_model():
+    with gmsh_model():
         _, faces = add_geometry(tip)
         outer = _sample(faces["pulp_surface"] + faces["outer_surface"], L, samples)
         inner = _sample(faces["skin_subcutaneous"], L, samples)

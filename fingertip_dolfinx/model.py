@@ -40,7 +40,6 @@ import numpy as np
 import ufl
 from dolfinx import fem
 
-from .contact import p_wave_modulus
 from .errors import InputError
 from .kinematics import deformation_gradient
 from .materials import (
@@ -49,7 +48,9 @@ from .materials import (
     LinearElastic,
     Prony,
     first_piola_kirchhoff,
+    p_wave_modulus,
     second_piola_kirchhoff,
+    small_strain_p_wave_modulus,
     strain_energy_density,
 )
 from .poroelasticity import mass_residual
@@ -193,21 +194,6 @@ class State:
 # --- the region laws ------------------------------------------------------------------------
 
 
-def small_strain_p_wave_modulus(material: Hyperfoam | LinearElastic) -> float:
-    """λ0 + 2μ0, the stiffness of a laterally confined push at small strain (MPa): the
-    contact's stiffness scale.
-
-    Hyperfoam: K0 + 4μ0/3, which holds in plane strain as in 3D and needs no single ν. For the
-    paper's skin it is 6.96e-3 MPa, 1 ulp (2.5e-16) above E(1 − ν)/((1 + ν)(1 − 2ν)) with
-    E = 2μ0(1 + ν), used before; through γ that moved the 1pt scene's forces by 2e-12
-    (Nitsche) and 8e-12 (penalty, γ0 = 100) relative: Newton's converged iterate, not the
-    solution, carries the rounding.
-    """
-    if isinstance(material, LinearElastic):
-        return material.lmbda + 2.0 * material.mu
-    return material.K0 + 4.0 * material.mu0 / 3.0
-
-
 class Elastic:
     """A hyperelastic region: P = F S(C), S = 2 ∂W/∂C, W(C) its energy (hyperfoam, SVK)."""
 
@@ -341,7 +327,7 @@ class Laws:
         """The internal variables by their checkpoint names (qlv_h{i}, qlv_S_e_n)."""
         arrays = {}
         for law in self.with_history():
-            names = {f.name: f.x.array for f in (*law.history.h, law.history.S_e_n)}
+            names = law.history.arrays()
             if set(names) & set(arrays):
                 raise InputError("model", "two regions keep a QLV history: their checkpoint "
                                  "names would clash.", "make one region viscoelastic.")

@@ -26,7 +26,7 @@ from __future__ import annotations
 import ufl
 
 from .kinematics import deformation_gradient, right_cauchy_green
-from .materials import Biphasic, first_piola_kirchhoff
+from .materials import Biphasic, first_piola_kirchhoff, small_strain_p_wave_modulus
 
 
 def total_first_piola(u, p, material: Biphasic, P_e=None) -> ufl.core.expr.Expr:
@@ -82,19 +82,9 @@ def biphasic_residuals(u, p, u_n, v, q, dt, material: Biphasic, dx, P_e=None, u_
             mass_residual(u, p, u_n, q, dt, material, dx, u_nm1, weights))
 
 
-def drained_first_piola(u, material: Biphasic) -> ufl.core.expr.Expr:
-    """The equilibrium (fully drained, p = 0) stress: the solid's hyperfoam response alone.
-
-    Long after loading stops, p → 0 wherever the pore fluid can escape, and the mixture
-    carries load like the drained solid; compare a biphasic run's end state with this.
-    """
-    return first_piola_kirchhoff(material.solid, deformation_gradient(u))
-
-
 def consolidation_time(material: Biphasic, length: float, J: float = 1.0) -> float:
     """Drainage time scale L² / (H_A k) with the small-strain aggregate modulus
     H_A = K0 + 4μ0/3 (plane strain, confined): ~t for p to decay over a distance L (mm)."""
-    solid = material.solid
-    H = solid.K0 + 4.0 * solid.mu0 / 3.0
+    H = small_strain_p_wave_modulus(material.solid)
     k = float(material.permeability.permeability_np(J))
     return length**2 / (H * k)

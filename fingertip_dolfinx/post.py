@@ -13,6 +13,7 @@ import ufl
 from dolfinx import fem, geometry
 from dolfinx import mesh as dmesh
 
+from .admissibility import reference_vertices
 from .kinematics import hencky_strain, principal_log_strains
 
 
@@ -358,7 +359,7 @@ def _owned_cell_nodes(msh: dmesh.Mesh) -> np.ndarray:
     """Geometry nodes of the owned cells' corners (cells, corners)."""
     tdim = msh.topology.dim
     n = msh.topology.index_map(tdim).size_local
-    corners = len(basix_vertices(msh))
+    corners = len(reference_vertices(msh))
     return msh.geometry.dofmaps[0][:n, :corners]
 
 
@@ -379,12 +380,6 @@ def node_values(f: fem.Function) -> np.ndarray:
     values[msh.geometry.dofmaps[0][:, :corners].ravel()] = (
         f.x.array.reshape(-1, bs)[V.dofmap.list.ravel()])
     return values
-
-
-def basix_vertices(msh: dmesh.Mesh) -> np.ndarray:
-    import basix
-
-    return basix.geometry(basix.CellType[msh.topology.cell_name()])
 
 
 def _cell_regions(cell_tags: dmesh.MeshTags, n: int) -> np.ndarray:

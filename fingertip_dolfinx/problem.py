@@ -73,6 +73,7 @@ from .kinematics import deformation_gradient
 from .loading import History
 from .mesh import FingertipMesh
 from .model import ModelOptions, State, compose_laws
+from .state import SteppableState
 from .tissues import REGIONS, WU2004, Tissues
 
 #: Points per surface facet at which the deformed pulp is sampled to find a tip's depth.
@@ -84,11 +85,13 @@ DEFAULT_OPTIONS = ModelOptions()
 JIT_OPTIONS_3D = {"cffi_extra_compile_args": ["-O1", "-g0"]}
 
 
-class FingertipProblem:
+class FingertipProblem(SteppableState):
     """Forms, unknowns, supports and loads of the fingertip under rigid indenters.
 
     The indenters move together as one rigid holder along the protocol. Implements the
-    `stepping.Steppable` protocol: `TimeStepper` advances it in time.
+    `stepping.Steppable` protocol: `TimeStepper` advances it in time;
+    its state bookkeeping (accept, restore, the state arrays, admissibility) is
+    `state.SteppableState`.
 
     Parameters
     ----------
@@ -165,7 +168,7 @@ class FingertipProblem:
             cells["subcutaneous"], pore.phi0, options.compaction_margin,
             None if material is None else material.permeability.k0))
         self.admissibility = Admissibility(self.F, msh, options.quadrature_degree, compaction)
-        self._last = [f.x.array.copy() for f in self.unknowns]
+        self.mark_accepted()
         self.time = 0.0
 
     # --- the parts of the residual --------------------------------------------------------------
@@ -199,7 +202,7 @@ class FingertipProblem:
         """The rigid indenters on the pulp: −∫_pulp p_c n·v dS (contact.NitscheContact), with
         the pulp law's instantaneous elastic stress as the traction estimate."""
         X_pulp, _ = self.pulp_nodes()
-        self.y_touch = _first_touch(np.concatenate(self.mesh.comm.allgather(X_pulp)),
+        self.y_touch = first_touch(np.concatenate(self.mesh.comm.allgather(X_pulp)),
                                     self.indenters)
         self.obstacles = [Obstacle.at(self.mesh, ind, self.y_touch) for ind in self.indenters]
         pulp, o = self.laws.regions["skin"], self.options
@@ -277,20 +280,18 @@ class FingertipProblem:
         """The skin's QLV history (viscoelasticity.QuasiLinearViscoelasticity), or None."""
         return self.laws.regions["skin"].history
 
-    def state_arrays(self) -> dict[str, np.ndarray]:
-        """The arrays that define the state, by their checkpoint names: u, u_n, p (if any),
-        u_nm1 (if the pore law has a rate: biphasic, for BDF2), v_n and a_n (with inertia),
-        qlv_h{i} and qlv_S_e_n (if the
-        skin is viscoelastic). They are the live arrays: writing into them sets the state
-        (then scatter_forward the unknowns, mark_accepted)."""
-        arrays = {"u": self.u.x.array, "u_n": self.u_n.x.array}
-        if self.p is not None:
-            arrays["p"] = self.p.x.array
-        if getattr(self.laws.pore, "has_rate", False):
-            arrays["u_nm1"] = self.u_nm1.x.array
-        if self.inertia is not None:
-            arrays |= self.inertia.arrays()
-        return arrays | self.laws.history_arrays()
+    @property
+    def keeps_u_nm1(self) -> bool:
+        """u_{n−1} is state if the pore law has a rate (biphasic, for BDF2)."""
+        return getattr(self.laws.pore, "has_rate", False)
+
+    def histories(self) -> list:
+        """The QLV histories of the regions' laws (a law shared by regions counts once)."""
+        return [law.history for law in self.laws.with_history()]
+
+    def history_arrays(self) -> dict[str, np.ndarray]:
+        """qlv_h{i}, qlv_S_e_n if the skin is viscoelastic (`model.Laws.history_arrays`)."""
+        return self.laws.history_arrays()
 
     def region_energies(self) -> dict[int, ufl.core.expr.Expr]:
         """Cell-tag value -> that region's own strain energy density (MPa; rigid regions 0)."""
@@ -315,36 +316,6 @@ class FingertipProblem:
         for obstacle in self.obstacles:
             obstacle.y_tip.value = self.y_touch + self.indentation(t)
         self.time = t
-
-    def accept(self) -> None:
-        for law in self.laws.with_history():
-            law.history.advance()
-        if self.inertia is not None:  # Newmark's update needs u_n of the step: first
-            self.inertia.advance()
-        self.u_nm1.x.array[:] = self.u_n.x.array
-        self.u_n.x.array[:] = self.u.x.array
-        self._last = [f.x.array.copy() for f in self.unknowns]
-
-    def mark_accepted(self) -> None:
-        """Take the current unknowns as the last accepted state (after loading a checkpoint)."""
-        self._last = [f.x.array.copy() for f in self.unknowns]
-
-    def restore(self) -> None:
-        for f, saved in zip(self.unknowns, self._last):
-            f.x.array[:] = saved
-
-    def min_jacobian(self, cells: np.ndarray | None = None) -> tuple[float, np.ndarray]:
-        """Smallest J at the quadrature points and vertices of `cells` (owned cells by
-        default), and where."""
-        return self.admissibility.min_jacobian(cells)
-
-    def inadmissible(self) -> str | None:
-        return self.admissibility.violation()
-
-    def compacted(self, margin: float | None = None, nodes: bool = True):
-        """The subcutaneous tissue's lowest J if within `margin` (the options' by default) of
-        its solid fraction (admissibility.Compacted), else None: the solver stops on it."""
-        return self.admissibility.compacted(margin, nodes)
 
     def residual_hotspot(self, residual) -> np.ndarray | None:
         """Reference position (mm) of the displacement node with the largest residual force in
@@ -452,7 +423,7 @@ class FingertipProblem:
         return np.concatenate(gathered)
 
 
-def _first_touch(points: np.ndarray, indenters: Sequence[Indenter]) -> float:
+def first_touch(points: np.ndarray, indenters: Sequence[Indenter]) -> float:
     """The common tip height at which the first indenter touches the surface `points`.
 
     min over the points of φ(y_tip) decreases with y_tip; bisection finds its zero.

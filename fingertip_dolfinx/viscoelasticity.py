@@ -91,6 +91,10 @@ class QuasiLinearViscoelasticity:
         for k, f in enumerate([*self.h, self.S_e_n]):
             f.x.array[self._index] = values[:, :, k, :].reshape(len(self.cells), -1)
 
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The live arrays of the internal variables, by checkpoint name (qlv_h{i}, qlv_S_e_n)."""
+        return {f.name: f.x.array for f in (*self.h, self.S_e_n)}
+
     def reset(self) -> None:
         """Forget the history (undeformed, stress-free start)."""
         for f in [*self.h, self.S_e_n]:

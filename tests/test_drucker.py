@@ -54,17 +54,17 @@ def test_per_term_nu_paths_have_zero_free_stress(plane_strain):
     closed form t = s^(−β n_s/(1 + n_f β)) (to the 2.5e-12 that δβ = δν/(1 − 2ν)² makes)."""
     s = np.concatenate([np.arange(1.0, 0.2, -1e-2), np.arange(1.0, 2.0, 1e-2)])
     m = foam((0.0, 0.2, 0.45))
-    for name, path in st._paths(m, plane_strain).items():
+    for name, path in st.loading_paths(m, plane_strain).items():
         lam = path(s)
         assert np.all(np.isfinite(lam)), name
         lam3 = np.concatenate([lam, np.ones((len(s), 1))], -1) if plane_strain else lam
         tau = m.principal_kirchhoff(lam3)
-        axes = (st._PATHS_PLANE if plane_strain else st._PATHS_3D)[name]
+        axes = (st.PATHS_PLANE if plane_strain else st.PATHS_3D)[name]
         free = [i for i, a in enumerate(axes) if a == "t"]
         assert np.abs(tau[:, free]).max(initial=0.0) < 1e-13 * np.abs(tau).max(), name
     near, one = foam((0.4, 0.4, 0.4 + 1e-13)), mat.SKIN
-    for (name, a), b in zip(st._paths(near, plane_strain).items(),
-                            st._paths(one, plane_strain).values()):
+    for (name, a), b in zip(st.loading_paths(near, plane_strain).items(),
+                            st.loading_paths(one, plane_strain).values()):
         assert np.abs(a(s) / b(s) - 1).max() < 1e-11, name
 
 

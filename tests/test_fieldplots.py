@@ -235,7 +235,7 @@ def test_saturated_colours_cover_a_share_of_the_area(comm, shared_tmp_path):
     (0.04, 1e3, "sed (kPa)")])
 def test_small_stresses_in_smaller_units(peak, factor, shown):
     """Tick labels stay short: an SED of 3.3e-5 MPa is shown as 33 Pa, not 0.000033."""
-    from fingertip_dolfinx.fieldplots import _value_text
+    from fingertip_dolfinx.fieldplots import value_text
     from fingertip_dolfinx.figures import display_unit
 
     assert display_unit("sed (MPa)", peak) == (factor, shown)
@@ -244,5 +244,5 @@ def test_small_stresses_in_smaller_units(peak, factor, shown):
     assert display_unit("u2 (mm)", 0.02) == (1e3, "u2 (µm)")
     assert display_unit("force (N/mm)", 1.2e-3) == (1e3, "force (mN/mm)")
     # a marked extreme in its own unit: a 20 kPa peak on a map whose colours stop at 55 Pa
-    assert _value_text("sed (MPa)", 0.0201) == "20.1 kPa"
-    assert _value_text("e_min (-)", -3.25e-4) == "-3.25e-04"
+    assert value_text("sed (MPa)", 0.0201) == "20.1 kPa"
+    assert value_text("e_min (-)", -3.25e-4) == "-3.25e-04"

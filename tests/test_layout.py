@@ -41,6 +41,7 @@ def _imports(path: Path) -> set[str]:
     """The package modules `path` imports (relative imports), by their names in the chain."""
     package = list(path.relative_to(PACKAGE).parts[:-1])
     names = set()
+
     for node in ast.walk(ast.parse(path.read_text())):
         if isinstance(node, ast.ImportFrom) and node.level > 0:
             base = package[: len(package) - (node.level - 1)]

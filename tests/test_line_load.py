@@ -36,7 +36,7 @@ def _problem(mesh_options, gamma0=100.0, contact="penalty", centre_x=0.0, indent
     section = dataclasses.replace(section, mesh=dataclasses.replace(section.mesh, **mesh_options))
     history = RampHold(1.0, 1.0, 1.0)
     # The line-load scene's contact: penalty, γ0 = 100, smoothed over a 0.1 µm gap
-    # (scenes/line-load.toml says why).
+    # (data/scenes/line-load.toml says why).
     options = ModelOptions(subcutaneous="biphasic", contact=contact, contact_gamma0=gamma0,
                            contact_smoothing=1e-4)
     shape = dataclasses.replace(load_indenter(indenter), centre_x=centre_x)

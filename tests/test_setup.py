@@ -215,3 +215,26 @@ def test_image_lets_a_rank_wait_for_a_form_another_rank_compiles():
     assert found, "no DOLFINx JIT options file with a timeout"
     assert int(found.group(1)) >= 600, "a compile can take minutes: wait at least 10 min"
     assert found.group(2).endswith(".config/dolfinx/dolfinx_jit_options.json")
+
+
+def test_version_is_written_once_in_pyproject_and_read_without_an_install(monkeypatch):
+    """`__version__` is pyproject.toml's version, from the installed distribution's metadata
+    or, in a source tree that is not installed, from the tree's pyproject.toml: no second copy
+    in the package to fall out of step."""
+    import importlib.metadata
+    import tomllib
+
+    import fingertip_dolfinx as ft
+
+    expected = tomllib.loads((REPO / "pyproject.toml").read_text())["project"]["version"]
+    copies = [p.name for p in (REPO / "fingertip_dolfinx").rglob("*.py")
+              if re.search(r"__version__\s*=\s*['\"]", p.read_text())]
+    assert not copies, f"a version written in the package: {copies}"
+    assert ft.__version__ == expected
+
+    def not_installed(name):
+        raise importlib.metadata.PackageNotFoundError(name)
+
+    monkeypatch.setattr(importlib.metadata, "version", not_installed)
+    monkeypatch.delitem(ft.__dict__, "__version__")
+    assert ft.__version__ == expected

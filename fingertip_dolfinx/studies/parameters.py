@@ -212,9 +212,3 @@ def _sci(ax) -> None:
     formatter.set_powerlimits((-2, 3))
     ax.yaxis.set_major_formatter(formatter)
     ax.tick_params(labelsize=7)
-
-def force_table(result: dict) -> np.ndarray:
-    """(values or factors, force max over the run, force at its end) rows of a sweep's result."""
-    scale = result["factors"] or [r["value"] for r in result["rows"]]
-    return np.array([[s, r["force_N_per_mm_max_over_run"], r["force_N_per_mm_at_t_end"]]
-                     for s, r in zip(scale, result["rows"])])

@@ -1,0 +1,71 @@
+"""Verification problems with exact answers, shared by the tests and the stability study.
+
+Each problem builds its mesh, forms and boundary conditions from the package's own pieces
+(poroelasticity, viscoelasticity, contact, the time stepper's SNES set-up) and knows its exact
+solution, so that a test and a study of the same problem measure the same thing. Units: mm, N,
+s, MPa; plane strain, so forces are per unit thickness (N/mm). One module per problem; every
+public name is imported here (`from fingertip_dolfinx.studies.problems import ConfinedBlock`).
+
+- `block`: `ConfinedBlock`, a block on rollers loaded on its top (a traction strip or a
+  displacement): biphasic (consolidation, creep, undrained strip load), viscoelastic (a relaxing
+  strip) or hyperelastic (or, `small_strain`, exactly linear); with a `density`, dynamic
+  (inertia.py: free vibration, a harmonically driven layer). A `Steppable` for
+  `stepping.TimeStepper`. `UnconfinedBlock`: plane-strain unconfined compression between
+  frictionless platens.
+- `platens`: the canonical biphasic benchmarks, a platen ramp then hold, confined
+  (`ConfinedRelaxation`) and unconfined (`UnconfinedRelaxation`), with their exact undrained and
+  drained limits (`confined_drained_state`, `unconfined_undrained_state`,
+  `unconfined_drained_state`) and `run_relaxation`.
+- `terzaghi`: `Terzaghi`, the drained-top consolidation column and its exact pore pressure and
+  settlement, after any time t (Terzaghi's series) and after one backward-Euler step.
+- `hertz`: `Hertz` and `HertzBlock`, a rigid cylinder pressed into a linear-elastic half block
+  with Nitsche contact, and the plane-strain Hertz half-width and peak pressure. `HertzSphere`:
+  the 3D case, a rigid sphere on a quarter block (two symmetry planes), Hertz's contact radius
+  and peak pressure (forces in N).
+- `layered`: `layered_block`, a synthetic 3D `FingertipMesh`, the four tissues as horizontal
+  slabs of a half block with the fingertip's tags (pulp below, nail centre strip on top,
+  symmetry and proximal-cut planes): the 3D problem's wiring without the fingertip geometry.
+- `vibrating`: `VibratingLayer`, a viscoelastic hyperfoam layer on a rigid base, laterally
+  confined, its top shaken harmonically: the standing wave of uniaxial strain in closed form,
+  the exact check of the frequency-domain route (`harmonic`: G*(ω), the mass, the real block
+  form).
+- Closed forms: `confined_modulus`, `confined_drained_stress`, `prony_ramp_integral` (in
+  `block`); for dynamics the harmonically driven layer (`driven_layer`, `driven_layer_force`, in
+  `vibrating`; the complex modulus is `harmonic.complex_modulus`).
+- `wiring`: `newton_problem` (a NonlinearProblem with the solver's SNES set-up),
+  `support_reaction`, `graded`; `contact_edge` is in `hertz`.
+"""
+
+from .block import (
+    ConfinedBlock,
+    UnconfinedBlock,
+    confined_drained_stress,
+    confined_modulus,
+    prony_ramp_integral,
+)
+from .hertz import Hertz, HertzBlock, HertzSphere, HertzSphereBlock, contact_edge
+from .layered import LAYERS, layered_block
+from .platens import (
+    ConfinedRelaxation,
+    PlatenRelaxation,
+    PlatenState,
+    RelaxationRun,
+    UnconfinedRelaxation,
+    confined_drained_state,
+    run_relaxation,
+    unconfined_drained_state,
+    unconfined_undrained_state,
+)
+from .terzaghi import Terzaghi
+from .vibrating import VibratingLayer, driven_layer, driven_layer_force
+from .wiring import QUADRATURE_DEGREE, graded, newton_problem, support_reaction
+
+__all__ = [
+    "ConfinedBlock", "ConfinedRelaxation", "Hertz", "HertzBlock", "HertzSphere",
+    "HertzSphereBlock", "LAYERS", "PlatenRelaxation", "PlatenState", "QUADRATURE_DEGREE",
+    "RelaxationRun", "Terzaghi", "UnconfinedBlock", "UnconfinedRelaxation",
+    "VibratingLayer", "confined_drained_state", "confined_drained_stress",
+    "confined_modulus", "contact_edge", "driven_layer", "driven_layer_force", "graded",
+    "layered_block", "newton_problem", "prony_ramp_integral", "run_relaxation",
+    "support_reaction", "unconfined_drained_state", "unconfined_undrained_state",
+]
