@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 
 import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
-from fingertip_dolfinx import materials as mat
+from fingertip_dolfinx.physics import materials as mat
 from fingertip_dolfinx.stepping import (
     TIME_SHARE,
     StepOptions,

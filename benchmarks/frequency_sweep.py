@@ -21,8 +21,8 @@ from mpi4py import MPI
 
 import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
 from fingertip_dolfinx.frequency_response import pressing_of, run_frequency_response
+from fingertip_dolfinx.geometry.mesh import build_mesh
 from fingertip_dolfinx.harmonic import HarmonicSolver, linearise, press
-from fingertip_dolfinx.mesh import build_mesh
 from fingertip_dolfinx.problem import FingertipProblem
 from fingertip_dolfinx.scene import load_scene
 

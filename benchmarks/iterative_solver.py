@@ -20,7 +20,7 @@ from mpi4py import MPI
 
 import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
 from fingertip_dolfinx.errors import ConvergenceError
-from fingertip_dolfinx.mesh import build_mesh
+from fingertip_dolfinx.geometry.mesh import build_mesh
 from fingertip_dolfinx.problem import FingertipProblem
 from fingertip_dolfinx.scene import load_scene
 from fingertip_dolfinx.stepping import StepOptions, TimeStepper

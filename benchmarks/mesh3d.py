@@ -10,8 +10,8 @@ import time
 
 from mpi4py import MPI
 
-from fingertip_dolfinx.geometry3d import load_fingertip3d
-from fingertip_dolfinx.mesh3d import build_mesh3d, report_dict3d
+from fingertip_dolfinx.geometry.fingertip3d import load_fingertip3d
+from fingertip_dolfinx.geometry.mesh3d import build_mesh3d, report_dict3d
 
 CASES = {
     "coarse (tests), h = 1.6": {"mesh": {"min_size": 1.6, "max_size": 1.6, "bone_size": 3.2}},

@@ -29,9 +29,9 @@ from pathlib import Path
 import numpy as np
 
 import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
-from fingertip_dolfinx import materials as mat
 from fingertip_dolfinx.loading import RampHold
 from fingertip_dolfinx.outputs import read_csv
+from fingertip_dolfinx.physics import materials as mat
 from fingertip_dolfinx.runner import run_scene
 from fingertip_dolfinx.scene import load_scene
 from fingertip_dolfinx.stepping import StepOptions, TimeStepper

@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from fingertip_dolfinx import vibrotactile as vt
-from fingertip_dolfinx.receptors import QUANTITIES, load_receptors
+from fingertip_dolfinx.afferents import vibrotactile as vt
+from fingertip_dolfinx.afferents.receptors import QUANTITIES, load_receptors
 
 FREQUENCIES = np.geomspace(2.0, 1000.0, 40)
 COARSE = ["section.mesh.min_size=0.2", "section.mesh.max_size=1.0", "section.mesh.bone_size=2.0",

@@ -102,7 +102,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import fingertip_dolfinx as ft
-from fingertip_dolfinx.materials import small_strain_p_wave_modulus
+from fingertip_dolfinx.physics.materials import small_strain_p_wave_modulus
 
 COARSE = os.environ.get("FINGERTIP_DEMO_COARSE", "") not in ("", "0") or "--coarse" in sys.argv
 OUT = Path(os.environ.get("FINGERTIP_DEMO_OUT", "results/demos/line_load"))

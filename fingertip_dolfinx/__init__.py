@@ -1,9 +1,9 @@
 """fingertip-dolfinx: finite-strain biomechanics of touch in FEniCSx.
 
 A plane-strain fingertip (skin, subcutaneous tissue, bone, nail) pressed by rigid indenters,
-after Wu et al. (2004). The modules follow the physics, each depending only on those before it:
-geometry -> mesh -> kinematics -> materials -> tissues -> contact -> model -> problem ->
-stepping -> scene -> runner -> outputs / figures -> studies.
+after Wu et al. (2004). The subpackages follow the physics (geometry, physics, stepping,
+afferents, plotting, studies); each module depends only on those before it in the chain of
+docs/DESIGN.md, which a test checks.
 
 The Python API, in the order a study uses it::
 
@@ -30,66 +30,53 @@ The names below are imported on first use, so that `import fingertip_dolfinx` (a
 from importlib import import_module
 
 # The PyPI wheel's PETSc must be set up before dolfinx or petsc4py is imported. Python runs
-# this file before any module of the package (`import fingertip_dolfinx.mesh` imports the
-# package first), so no module needs to import the package root for it.
+# this file before any module of the package (`import fingertip_dolfinx.geometry.mesh` imports
+# the package first), so no module needs to import the package root for it.
 try:
     import dolfinx_solver  # noqa: F401
 except ImportError:  # DOLFINx from conda or the official images needs no set-up.
     pass
 
-#: Public name -> the module that defines it.
-_API = {
+#: The public names, by the module that defines them (imported on first use).
+_MODULES = {
     # scenes: experiments as data, and running them
-    "Scene": "scene", "Outputs": "scene", "load_scene": "scene",
-    "run": "routes", "route_of": "routes", "run_scene": "runner", "check": "checks",
-    "Result": "result", "FrequencyResult": "result", "load_result": "result",
-    "adapt": "adaptivity", "AdaptOptions": "adaptivity",
+    "scene": ("Scene", "Outputs", "load_scene"),
+    "routes": ("run", "route_of"),
+    "runner": ("run_scene",),
+    "checks": ("check",),
+    "result": ("Result", "FrequencyResult", "load_result"),
+    "studies.adaptivity": ("adapt", "AdaptOptions"),
     # materials as data
-    "Tissues": "tissues", "Rigid": "tissues", "load_materials": "tissues", "WU2004": "tissues",
-    "Hyperfoam": "materials", "Prony": "materials", "HolmesMow": "materials",
-    "ConstantPermeability": "materials", "Biphasic": "materials", "LinearElastic": "materials",
+    "physics.tissues": ("Tissues", "Rigid", "load_materials", "WU2004"),
+    "physics.materials": ("Hyperfoam", "Prony", "HolmesMow", "ConstantPermeability", "Biphasic",
+                          "LinearElastic"),
     # geometry, mesh, indenters, protocols
-    "Section": "geometry", "MeshOptions": "geometry", "load_section": "geometry",
-    "build_mesh": "mesh",
-    "Fingertip3D": "geometry3d", "load_fingertip3d": "geometry3d", "build_mesh3d": "mesh3d",
-    "Wedge": "indenters", "Bar": "indenters", "Cylinder": "indenters", "Plate": "indenters",
-    "load_indenter": "indenters",
-    "RampHold": "loading", "PiecewiseLinear": "loading", "Sinusoid": "loading",
-    "Vibration": "loading",
+    "geometry.section": ("Section", "MeshOptions", "load_section"),
+    "geometry.mesh": ("build_mesh",),
+    "geometry.fingertip3d": ("Fingertip3D", "load_fingertip3d"),
+    "geometry.mesh3d": ("build_mesh3d",),
+    "geometry.indenters": ("Wedge", "Bar", "Cylinder", "Plate", "load_indenter"),
+    "loading": ("RampHold", "PiecewiseLinear", "Sinusoid", "Vibration"),
     # the model, the problem and the solver, for those who build their own runs
-    "ModelOptions": "model", "FingertipProblem": "problem",
-    "StepOptions": "stepping", "TimeStepper": "stepping",
+    "model": ("ModelOptions",),
+    "problem": ("FingertipProblem",),
+    "stepping": ("StepOptions", "TimeStepper"),
     # receptor sites and afferent models
-    "load_receptors": "receptors", "ReceptorPopulation": "receptors",
-    "afferent_responses": "receptors",
+    "afferents.receptors": ("load_receptors", "ReceptorPopulation", "afferent_responses"),
     # errors
-    "FingertipError": "errors", "InputError": "errors", "ConvergenceError": "errors",
-    "CompactionError": "errors", "RunInterrupted": "errors",
+    "errors": ("FingertipError", "InputError", "ConvergenceError", "CompactionError",
+               "RunInterrupted"),
 }
+#: Public name -> the module that defines it.
+_API = {name: module for module, names in _MODULES.items() for name in names}
 __all__ = sorted(_API)
-
-
-def _version() -> str:
-    """The version pyproject.toml gives (its one place): the installed distribution's, or in
-    a source tree that is not installed, read from the tree's pyproject.toml."""
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("fingertip-dolfinx")
-    except PackageNotFoundError:
-        import tomllib
-        from pathlib import Path
-
-        try:
-            with (Path(__file__).resolve().parents[1] / "pyproject.toml").open("rb") as f:
-                return tomllib.load(f)["project"]["version"]
-        except (OSError, KeyError, tomllib.TOMLDecodeError):
-            return "0+unknown"
 
 
 def __getattr__(name: str):
     if name == "__version__":  # read on first use: `import fingertip_dolfinx` stays fast
-        globals()[name] = _version()
+        from .datafiles import package_version
+
+        globals()[name] = package_version()
         return globals()[name]
     if name not in _API:
         raise AttributeError(f"module 'fingertip_dolfinx' has no attribute {name!r}")

@@ -18,8 +18,8 @@ from dolfinx.mesh import entities_to_geometry
 from mpi4py import MPI
 
 from .errors import InputError
-from .geometry3d import Fingertip3D
-from .mesh import build_mesh
+from .geometry.fingertip3d import Fingertip3D
+from .geometry.mesh import build_mesh
 from .problem import first_touch
 from .runner import check_reach
 from .scene import Scene, blamed, load_scene

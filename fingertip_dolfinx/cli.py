@@ -346,7 +346,7 @@ def _print_frequency(result) -> None:
 
 
 def _print_adaptive(result) -> None:
-    from .adaptivity import read_adapt
+    from .studies.adaptivity import read_adapt
 
     cost = read_adapt(result.out)["cost"]
     _rank0_print(f"{cost['levels']} levels, {cost['wall_time_s']:.1f} s of time stepping "
@@ -364,7 +364,7 @@ def _run_sweep(args) -> int:
         return _run_parameter_sweep(args)
     if not args.spacings:
         raise InputError("sweep", "nothing to sweep over.", "give --param KEY or --spacings.")
-    from .sweep import run_sweep
+    from .studies.sweep import run_sweep
 
     result = run_sweep(args.scene, args.spacings, args.out, _scene_overrides(args),
                        progress=not args.quiet, spots=args.spots)
@@ -407,10 +407,10 @@ def _run_parameter_sweep(args) -> int:
 
 def _run_mesh(args) -> int:
     """`fingertip mesh`: the 2D section's triangles (or quadrilaterals) and its report."""
-    from .figures import plot_tagged_mesh
-    from .geometry import load_section
-    from .geometry3d import section_dimension
-    from .mesh import build_mesh, report_dict
+    from .geometry.fingertip3d import section_dimension
+    from .geometry.mesh import build_mesh, report_dict
+    from .geometry.section import load_section
+    from .plotting.figures import plot_tagged_mesh
 
     if section_dimension(args.section) == 3:
         return _run_mesh3d(args)
@@ -429,9 +429,9 @@ def _run_mesh(args) -> int:
 
 def _run_mesh3d(args) -> int:
     """`fingertip mesh` of a 3D fingertip file (`dimension = 3`): tetrahedra, the same outputs."""
-    from .fieldplots import plot_tagged_mesh3d
-    from .geometry3d import load_fingertip3d
-    from .mesh3d import build_mesh3d, report_dict3d
+    from .geometry.fingertip3d import load_fingertip3d
+    from .geometry.mesh3d import build_mesh3d, report_dict3d
+    from .plotting.fieldplots import plot_tagged_mesh3d
 
     if args.quad:
         raise InputError("--quad", "3D meshes are tetrahedral only.", "leave out --quad.")
@@ -454,7 +454,7 @@ def _mesh_and_write(build, out, plot, report_of):
     from mpi4py import MPI
     from rich.console import Console
 
-    from .mesh import write_xdmf
+    from .geometry.mesh import write_xdmf
 
     comm = MPI.COMM_WORLD
     console = Console(stderr=True, quiet=comm.rank != 0)

@@ -8,6 +8,7 @@ by the stem of a built-in one (`line-load`) or by a path (`./my-scene.toml`).
 
 from __future__ import annotations
 
+import importlib.metadata
 import tomllib
 from importlib.resources import files
 from pathlib import Path
@@ -53,3 +54,16 @@ def read_toml(path: str | Path) -> dict:
             return tomllib.load(f)
     except tomllib.TOMLDecodeError as error:
         raise InputError(str(path), f"is not valid TOML: {error}.", "fix the syntax.") from None
+
+
+def package_version() -> str:
+    """The version pyproject.toml gives (its one place): the installed distribution's, or in
+    a source tree that is not installed, read from the tree's pyproject.toml."""
+    try:
+        return importlib.metadata.version("fingertip-dolfinx")
+    except importlib.metadata.PackageNotFoundError:
+        try:
+            with (Path(__file__).resolve().parents[1] / "pyproject.toml").open("rb") as f:
+                return tomllib.load(f)["project"]["version"]
+        except (OSError, KeyError, tomllib.TOMLDecodeError):
+            return "0+unknown"

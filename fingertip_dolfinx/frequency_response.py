@@ -52,19 +52,25 @@ from matplotlib.figure import Figure
 from mpi4py import MPI
 from ufl.algorithms import expand_derivatives
 
+from .afferents.receptors import (
+    CLASSES,
+    QUANTITIES,
+    ReceptorRecorder,
+    load_receptors,
+    pressure_sampling,
+)
+from .afferents.vibrotactile import plot_threshold_curves, vibration_thresholds
 from .errors import InputError
-from .figures import plain_log_ticks
+from .geometry.mesh import build_mesh
 from .harmonic import HarmonicSolver, complex_modulus, linearise, press
 from .harmonic_options import HarmonicOptions, parse_frequencies
-from .kinematics import principal_log_strains
 from .loading import RampHold, Vibration
-from .mesh import build_mesh
 from .outputs import CsvLog, prepare_directory, write_json
+from .physics.kinematics import principal_log_strains
+from .plotting.figures import plain_log_ticks
 from .post import DerivedFields, PointSampler, QuadratureProjection, accepted_stress
 from .problem import FingertipProblem
-from .receptors import CLASSES, QUANTITIES, ReceptorRecorder, load_receptors, pressure_sampling
 from .scene import Scene, scene_record
-from .vibrotactile import plot_threshold_curves, vibration_thresholds
 
 RESPONSE_COLUMNS = ("frequency_Hz", "K_abs_N_per_mm2", "K_phase_deg", "Z_abs_Ns_per_mm2",
                     "Z_phase_deg", "K_real", "K_imag", "solve_s")

@@ -68,8 +68,8 @@ from petsc4py import PETSc
 from .errors import InputError
 from .harmonic_options import STATES
 from .loading import RampHold
-from .materials import Prony
-from .poroelasticity import consolidation_time, darcy_flux
+from .physics.materials import Prony
+from .physics.poroelasticity import consolidation_time, darcy_flux
 from .stepping.controllers import BACKWARD_EULER
 from .stepping.options import StepOptions
 from .stepping.stepper import TimeStepper

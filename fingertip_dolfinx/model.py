@@ -41,8 +41,8 @@ import ufl
 from dolfinx import fem
 
 from .errors import InputError
-from .kinematics import deformation_gradient
-from .materials import (
+from .physics.kinematics import deformation_gradient
+from .physics.materials import (
     Biphasic,
     Hyperfoam,
     LinearElastic,
@@ -53,9 +53,9 @@ from .materials import (
     small_strain_p_wave_modulus,
     strain_energy_density,
 )
-from .poroelasticity import mass_residual
-from .tissues import REGIONS, Rigid, Tissues
-from .viscoelasticity import QuasiLinearViscoelasticity
+from .physics.poroelasticity import mass_residual
+from .physics.tissues import REGIONS, Rigid, Tissues
+from .physics.viscoelasticity import QuasiLinearViscoelasticity
 
 SUBCUTANEOUS_MODELS = ("biphasic", "undrained", "drained")
 TISSUE_MODELS = ("layered", "continuum")

@@ -416,7 +416,7 @@ def run_summary(out: Path, record: dict, mesh_report, dofs: int, ranks: int, *, 
 
     import dolfinx
 
-    from . import __version__
+    from .datafiles import package_version
 
     h = read_csv(Path(out) / "history.csv")
     times = h.get("time_s", np.zeros(0))
@@ -431,7 +431,7 @@ def run_summary(out: Path, record: dict, mesh_report, dofs: int, ranks: int, *, 
         "scene_data": record,
         "materials": record["materials"],
         "model": record["model"],
-        "versions": {"fingertip_dolfinx": __version__, "dolfinx": dolfinx.__version__,
+        "versions": {"fingertip_dolfinx": package_version(), "dolfinx": dolfinx.__version__,
                      "python": platform.python_version()},
         "mpi_ranks": ranks,
         "mesh": {"cells": r.num_cells, "cell_type": r.cell_type, "min_edge_mm": r.min_edge,

@@ -13,8 +13,8 @@ import ufl
 from dolfinx import fem, geometry
 from dolfinx import mesh as dmesh
 
-from .admissibility import reference_vertices
-from .kinematics import hencky_strain, principal_log_strains
+from .physics.admissibility import reference_vertices
+from .physics.kinematics import hencky_strain, principal_log_strains
 
 
 class PointSampler:

@@ -58,23 +58,23 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from .admissibility import Admissibility, Compaction, from_holder
-from .contact import (
+from .errors import InputError
+from .geometry.indenters import Indenter
+from .geometry.mesh import FingertipMesh
+from .loading import History
+from .model import ModelOptions, State, compose_laws
+from .physics.admissibility import Admissibility, Compaction, from_holder
+from .physics.contact import (
     TIP_PENETRATION_TOLERANCE,
     NitscheContact,
     Obstacle,
     TipResolutionWarning,
     check_tip_resolution,
 )
-from .errors import InputError
-from .indenters import Indenter
-from .inertia import Inertia
-from .kinematics import deformation_gradient
-from .loading import History
-from .mesh import FingertipMesh
-from .model import ModelOptions, State, compose_laws
+from .physics.inertia import Inertia
+from .physics.kinematics import deformation_gradient
+from .physics.tissues import REGIONS, WU2004, Tissues
 from .state import SteppableState
-from .tissues import REGIONS, WU2004, Tissues
 
 #: Points per surface facet at which the deformed pulp is sampled to find a tip's depth.
 TIP_SAMPLES = 9

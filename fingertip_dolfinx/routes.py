@@ -199,8 +199,8 @@ def _time(scene: Scene, out: Path, resume: bool, progress: bool, comm, say) -> R
 def _adaptive(scene: Scene, out: Path, tol, max_levels, resume, progress, comm, say) -> Result:
     """The adaptive mesh loop (adaptivity.py) to `tol`, else the scene's [accuracy] tol; the
     answer's files are in `out`."""
-    from .adaptivity import AdaptOptions, adapt
     from .result import Result
+    from .studies.adaptivity import AdaptOptions, adapt
 
     if tol is None:
         tol = scene.accuracy.tol

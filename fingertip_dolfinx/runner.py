@@ -29,16 +29,11 @@ from typing import Self
 import numpy as np
 from mpi4py import MPI
 
+from .afferents.receptors import ReceptorRecorder, load_receptors
 from .errors import ConvergenceError, InputError, RunInterrupted
-from .figures import (
-    plot_depth_profiles,
-    plot_force_history,
-    plot_line_force,
-    plot_surface_profiles,
-)
-from .geometry3d import Fingertip3D
-from .mesh import build_mesh, write_xdmf
-from .mesh3d import build_mesh3d
+from .geometry.fingertip3d import Fingertip3D
+from .geometry.mesh import build_mesh, write_xdmf
+from .geometry.mesh3d import build_mesh3d
 from .outputs import (
     DEPTH_COLUMNS,
     DEPTH_COLUMNS_3D,
@@ -59,10 +54,15 @@ from .outputs import (
     whole_files,
     write_json,
 )
-from .pictures import field_pictures
+from .plotting.figures import (
+    plot_depth_profiles,
+    plot_force_history,
+    plot_line_force,
+    plot_surface_profiles,
+)
+from .plotting.pictures import field_pictures
 from .post import DerivedFields, FieldArrays, Profiles, Profiles3D
 from .problem import FingertipProblem
-from .receptors import ReceptorRecorder, load_receptors
 from .result import Result
 from .scene import Scene, scene_record
 from .stepping.stepper import TimeStepper

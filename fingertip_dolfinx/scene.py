@@ -22,14 +22,14 @@ from pathlib import Path
 
 from .datafiles import builtin_dir, find, read_toml
 from .errors import InputError
-from .geometry import Section, load_section
-from .geometry3d import Fingertip3D, load_fingertip3d, section_dimension
+from .geometry.fingertip3d import Fingertip3D, load_fingertip3d, section_dimension
+from .geometry.indenters import Indenter, load_indenter, make_indenter
+from .geometry.section import Section, load_section
 from .harmonic_options import HarmonicOptions
-from .indenters import Indenter, load_indenter, make_indenter
 from .loading import KINDS, LoadHistory, history_from_dict
 from .model import ModelOptions
+from .physics.tissues import DEFAULT_SET, WU2004, Tissues, load_materials
 from .stepping.options import StepOptions, check_linear
-from .tissues import DEFAULT_SET, WU2004, Tissues, load_materials
 from .validation import check_keys, positive
 
 #: The built-in scenes (inside the package: `fingertip_dolfinx/data/scenes/`).

@@ -35,8 +35,8 @@ from pathlib import Path
 
 import numpy as np
 
-from fingertip_dolfinx.receptors import QUANTITIES, load_receptors
-from fingertip_dolfinx.vibrotactile import (
+from fingertip_dolfinx.afferents.receptors import QUANTITIES, load_receptors
+from fingertip_dolfinx.afferents.vibrotactile import (
     rate_vs_amplitude,
     saal_thresholds_stimulus,
     vibration_thresholds,

@@ -107,7 +107,7 @@ def plot(path: Path, eta0: float, band) -> None:
     from matplotlib.figure import Figure
     from matplotlib.ticker import ScalarFormatter
 
-    from fingertip_dolfinx.tissues import load_materials
+    from fingertip_dolfinx.physics.tissues import load_materials
 
     f = np.logspace(0, 3, 300)
     fig = Figure(figsize=(6.4, 5.6))

@@ -15,7 +15,11 @@ from pathlib import Path
 import numpy as np
 
 import fingertip_dolfinx as ft
-from fingertip_dolfinx.receptors import afferent_responses, load_receptors, threshold_amplitude
+from fingertip_dolfinx.afferents.receptors import (
+    afferent_responses,
+    load_receptors,
+    threshold_amplitude,
+)
 
 COARSE = ["section.mesh.min_size=0.2", "section.mesh.max_size=1.0",
           "section.mesh.bone_size=2.0", 'output.receptors="default"', "output.pictures=false"]

@@ -11,13 +11,13 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from fingertip_dolfinx import adaptivity as ad
 from fingertip_dolfinx.errors import InputError
-from fingertip_dolfinx.geometry import Section
+from fingertip_dolfinx.geometry.mesh import SizeMap, build_mesh
+from fingertip_dolfinx.geometry.section import Section
 from fingertip_dolfinx.keys import KEYS
-from fingertip_dolfinx.kinematics import hencky_strain
-from fingertip_dolfinx.mesh import SizeMap, build_mesh
+from fingertip_dolfinx.physics.kinematics import hencky_strain
 from fingertip_dolfinx.scene import load_scene
+from fingertip_dolfinx.studies import adaptivity as ad
 
 # --- the indicator on fields with known answers --------------------------------------------------
 

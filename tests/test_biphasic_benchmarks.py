@@ -17,7 +17,7 @@ import sys
 import numpy as np
 import pytest
 
-from fingertip_dolfinx import materials as mat
+from fingertip_dolfinx.physics import materials as mat
 from fingertip_dolfinx.stepping import StepOptions
 from fingertip_dolfinx.studies.problems import (
     ConfinedRelaxation,

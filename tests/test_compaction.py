@@ -19,10 +19,10 @@ import ufl
 from dolfinx import fem, mesh
 from mpi4py import MPI
 
-from fingertip_dolfinx import materials as mat
-from fingertip_dolfinx.admissibility import Admissibility, Compaction, quadrature_points
 from fingertip_dolfinx.errors import CompactionError, ConvergenceError, InputError
 from fingertip_dolfinx.loading import RampHold
+from fingertip_dolfinx.physics import materials as mat
+from fingertip_dolfinx.physics.admissibility import Admissibility, Compaction, quadrature_points
 from fingertip_dolfinx.stepping import StepOptions, TimeStepper, crosses, distinct
 from fingertip_dolfinx.studies.problems import ConfinedBlock
 

@@ -15,9 +15,9 @@ import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
-from fingertip_dolfinx.contact import NitscheContact, Obstacle
 from fingertip_dolfinx.errors import InputError
-from fingertip_dolfinx.indenters import Bar, Cylinder
+from fingertip_dolfinx.geometry.indenters import Bar, Cylinder
+from fingertip_dolfinx.physics.contact import NitscheContact, Obstacle
 from fingertip_dolfinx.studies.problems import (
     Hertz,
     contact_edge,

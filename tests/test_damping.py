@@ -7,9 +7,9 @@ t ≫ 10 ms is kept (identity of the construction; a coarse 1pt ramp and hold)."
 import numpy as np
 import pytest
 
-from fingertip_dolfinx.drucker import drucker_check
 from fingertip_dolfinx.harmonic import complex_modulus
-from fingertip_dolfinx.tissues import WU2004, load_materials
+from fingertip_dolfinx.physics.drucker import drucker_check
+from fingertip_dolfinx.physics.tissues import WU2004, load_materials
 
 DAMPED = load_materials("damped-fingerpad")
 FAST = 5  # the first five terms are the fitted fast ones (0.1–10 ms)

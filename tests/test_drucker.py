@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from fingertip_dolfinx import drucker as st
-from fingertip_dolfinx import materials as mat
 from fingertip_dolfinx.errors import InputError, MaterialInstabilityError
+from fingertip_dolfinx.physics import drucker as st
+from fingertip_dolfinx.physics import materials as mat
 
 #: μ0 = 0.3 > 0 (stable at small strain) but d(λ) = 2(−0.2λ + 0.5λ³) < 0 for λ < sqrt(0.4):
 #: loses stability in plane-strain equibiaxial compression at exactly λ = 0.6325.

@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from fingertip_dolfinx import materials as mat
 from fingertip_dolfinx.errors import FingertipError, InputError
 from fingertip_dolfinx.harmonic import complex_modulus
-from fingertip_dolfinx.inertia import wbz_parameters
 from fingertip_dolfinx.loading import Vibration
+from fingertip_dolfinx.physics import materials as mat
+from fingertip_dolfinx.physics.inertia import wbz_parameters
 from fingertip_dolfinx.scene import load_scene
 from fingertip_dolfinx.stepping import StepOptions, TimeStepper
 from fingertip_dolfinx.studies.problems import (
@@ -283,8 +283,8 @@ def test_vibrotactile_contact_keeps_fine_steps_stable(tmp_path):
 
 
 def test_non_conservative_contact_in_a_dynamic_run_is_flagged():
-    from fingertip_dolfinx.contact import NonConservativeContactWarning
-    from fingertip_dolfinx.mesh import build_mesh
+    from fingertip_dolfinx.geometry.mesh import build_mesh
+    from fingertip_dolfinx.physics.contact import NonConservativeContactWarning
     from fingertip_dolfinx.problem import FingertipProblem
 
     scene = scene_at(250.0, 1e-3, 1.0, "fast-relaxation", extra=["model.contact=nitsche"])
@@ -322,9 +322,9 @@ def test_fingertip_momentum_balance_with_inertia():
 
     from dolfinx import fem
 
-    from fingertip_dolfinx.geometry import load_section
-    from fingertip_dolfinx.indenters import load_indenter
-    from fingertip_dolfinx.mesh import build_mesh
+    from fingertip_dolfinx.geometry.indenters import load_indenter
+    from fingertip_dolfinx.geometry.mesh import build_mesh
+    from fingertip_dolfinx.geometry.section import load_section
     from fingertip_dolfinx.model import ModelOptions
     from fingertip_dolfinx.problem import FingertipProblem
 

@@ -5,8 +5,8 @@ identity of the construction, to round-off), and its record reads back."""
 import numpy as np
 import pytest
 
-from fingertip_dolfinx.drucker import drucker_check
-from fingertip_dolfinx.tissues import WU2004, load_materials
+from fingertip_dolfinx.physics.drucker import drucker_check
+from fingertip_dolfinx.physics.tissues import WU2004, load_materials
 
 FAST = load_materials("fast-relaxation")
 

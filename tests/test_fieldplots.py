@@ -14,14 +14,14 @@ from matplotlib.colors import to_rgb
 from mpi4py import MPI
 from PIL import Image
 
-from fingertip_dolfinx.fieldplots import (
+from fingertip_dolfinx.geometry.indenters import Cylinder
+from fingertip_dolfinx.plotting.fieldplots import (
     BAR_SHARE,
     BODY_GREY,
     INDENTER_GREY,
     WINDOW_SIZE,
     plot_field,
 )
-from fingertip_dolfinx.indenters import Cylinder
 
 A = 0.2  # shear: u2 = A x (mm), from 0 to 2 A across the body
 X_INTERFACE = 0.5  # the regions' interface (not where two ranks' parts meet, x = 1)
@@ -235,8 +235,8 @@ def test_saturated_colours_cover_a_share_of_the_area(comm, shared_tmp_path):
     (0.04, 1e3, "sed (kPa)")])
 def test_small_stresses_in_smaller_units(peak, factor, shown):
     """Tick labels stay short: an SED of 3.3e-5 MPa is shown as 33 Pa, not 0.000033."""
-    from fingertip_dolfinx.fieldplots import value_text
-    from fingertip_dolfinx.figures import display_unit
+    from fingertip_dolfinx.plotting.fieldplots import value_text
+    from fingertip_dolfinx.plotting.figures import display_unit
 
     assert display_unit("sed (MPa)", peak) == (factor, shown)
     assert display_unit("e_max (-)", 2.5e-6) == (1e6, "e_max (x 1e-6)")

@@ -7,7 +7,13 @@ import numpy as np
 import pytest
 
 from fingertip_dolfinx.errors import InputError
-from fingertip_dolfinx.geometry import SECTIONS_DIR, Ellipse, MeshOptions, Section, load_section
+from fingertip_dolfinx.geometry.section import (
+    SECTIONS_DIR,
+    Ellipse,
+    MeshOptions,
+    Section,
+    load_section,
+)
 
 
 def shoelace(points: np.ndarray) -> float:

@@ -9,13 +9,13 @@ import pytest
 from scipy.integrate import quad
 
 from fingertip_dolfinx.errors import InputError
-from fingertip_dolfinx.geometry import Ellipse, Section, load_section
-from fingertip_dolfinx.geometry3d import (
+from fingertip_dolfinx.geometry.fingertip3d import (
     Fingertip3D,
     half_ellipsoid_area_and_mean_curvature,
     load_fingertip3d,
     section_dimension,
 )
+from fingertip_dolfinx.geometry.section import Ellipse, Section, load_section
 
 
 def test_the_builtin_file_is_3d_and_its_cross_section_is_the_2d_section():
@@ -124,7 +124,7 @@ def test_the_half_model_halves_every_volume():
 
 
 def test_ellipsoid_distance_is_exact_on_spheres_and_at_the_apex():
-    from fingertip_dolfinx.geometry3d import ellipsoid_distance
+    from fingertip_dolfinx.geometry.fingertip3d import ellipsoid_distance
 
     p = np.array([[1.0, 2.0, 2.0], [0.3, -0.2, 6.5], [-4.0, 1.0, 8.0]])
     assert ellipsoid_distance(p, (5.0, 5.0, 5.0)) == pytest.approx(

@@ -21,6 +21,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from fingertip_dolfinx.errors import InputError
+from fingertip_dolfinx.geometry.mesh import build_mesh
 from fingertip_dolfinx.harmonic import (
     HarmonicSolver,
     complex_modulus,
@@ -30,12 +31,11 @@ from fingertip_dolfinx.harmonic import (
     step_force,
 )
 from fingertip_dolfinx.loading import RampHold
-from fingertip_dolfinx.materials import Prony
-from fingertip_dolfinx.mesh import build_mesh
+from fingertip_dolfinx.physics.materials import Prony
+from fingertip_dolfinx.physics.tissues import WU2004
 from fingertip_dolfinx.problem import FingertipProblem
 from fingertip_dolfinx.scene import load_scene
 from fingertip_dolfinx.studies.problems import VibratingLayer
-from fingertip_dolfinx.tissues import WU2004
 
 COARSE = ["section.mesh.min_size=0.2", "section.mesh.max_size=1.0", "section.mesh.bone_size=2.0"]
 #: Test value, not tissue data: fast Prony terms make G* vary over 1–1000 Hz.
@@ -283,7 +283,7 @@ def _check_thresholds(out, sites):
     import csv
     import json
 
-    from fingertip_dolfinx.receptors import receptors_from_dict
+    from fingertip_dolfinx.afferents.receptors import receptors_from_dict
 
     # the set the run used (the scene's: "calibrated", whose SA1 reads −σ22, not SED)
     population = receptors_from_dict(json.loads((out / "receptors.json").read_text()))

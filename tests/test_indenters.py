@@ -12,7 +12,7 @@ from mpi4py import MPI
 from scipy.spatial import cKDTree
 
 from fingertip_dolfinx.errors import InputError
-from fingertip_dolfinx.indenters import (
+from fingertip_dolfinx.geometry.indenters import (
     BUILTIN_DIR,
     Bar,
     Cylinder,

@@ -8,7 +8,7 @@ import fingertip_dolfinx as ft
 from fingertip_dolfinx.cli import main
 from fingertip_dolfinx.datafiles import builtin_names, find
 from fingertip_dolfinx.errors import InputError
-from fingertip_dolfinx.indenters import Cylinder
+from fingertip_dolfinx.geometry.indenters import Cylinder
 from fingertip_dolfinx.scene import TITLE_LENGTH, load_scene
 
 CYLINDER = [{"file": "cylinder", "radius": 5.0}]

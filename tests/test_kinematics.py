@@ -12,7 +12,7 @@ import ufl
 from dolfinx import fem, mesh
 from mpi4py import MPI
 
-from fingertip_dolfinx import kinematics as kin
+from fingertip_dolfinx.physics import kinematics as kin
 
 P = 2.4705  # f(c) = c^P, i.e. λ^α with α = 4.941 (the skin's first Ogden exponent)
 CELL = np.array([0], dtype=np.int32)

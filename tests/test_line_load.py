@@ -13,13 +13,13 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from fingertip_dolfinx.contact import TipResolutionWarning
-from fingertip_dolfinx.geometry import load_section
-from fingertip_dolfinx.indenters import load_indenter
+from fingertip_dolfinx.geometry.indenters import load_indenter
+from fingertip_dolfinx.geometry.mesh import build_mesh
+from fingertip_dolfinx.geometry.section import load_section
 from fingertip_dolfinx.loading import RampHold
-from fingertip_dolfinx.mesh import build_mesh
 from fingertip_dolfinx.model import ModelOptions
 from fingertip_dolfinx.outputs import read_csv
+from fingertip_dolfinx.physics.contact import TipResolutionWarning
 from fingertip_dolfinx.problem import FingertipProblem
 from fingertip_dolfinx.runner import run_scene
 from fingertip_dolfinx.scene import load_scene

@@ -14,9 +14,9 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from fingertip_dolfinx.errors import InputError
+from fingertip_dolfinx.geometry.mesh import build_mesh
 from fingertip_dolfinx.harmonic import press
 from fingertip_dolfinx.loading import RampHold
-from fingertip_dolfinx.mesh import build_mesh
 from fingertip_dolfinx.problem import FingertipProblem
 from fingertip_dolfinx.scene import load_scene, scene_record
 from fingertip_dolfinx.stepping import StepOptions, TimeStepper

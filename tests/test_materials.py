@@ -18,9 +18,9 @@ from dolfinx import fem, mesh
 from mpi4py import MPI
 from scipy.optimize import brentq
 
-from fingertip_dolfinx import materials as mat
 from fingertip_dolfinx.errors import InputError
-from fingertip_dolfinx.kinematics import deformation_gradient
+from fingertip_dolfinx.physics import materials as mat
+from fingertip_dolfinx.physics.kinematics import deformation_gradient
 from fingertip_dolfinx.studies.problems import prony_ramp_integral
 
 CELL = np.array([0], dtype=np.int32)

@@ -8,8 +8,7 @@ import pytest
 from dolfinx.mesh import CellType, entities_to_geometry, exterior_facet_indices
 from mpi4py import MPI
 
-from fingertip_dolfinx.geometry import Section
-from fingertip_dolfinx.mesh import (
+from fingertip_dolfinx.geometry.mesh import (
     CELL_TAGS,
     FACET_TAGS,
     build_mesh,
@@ -17,6 +16,7 @@ from fingertip_dolfinx.mesh import (
     region_areas,
     write_xdmf,
 )
+from fingertip_dolfinx.geometry.section import Section
 
 SIZES = (0.8, 0.4, 0.2)
 

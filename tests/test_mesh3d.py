@@ -12,9 +12,12 @@ from dolfinx import fem
 from dolfinx.mesh import entities_to_geometry, exterior_facet_indices
 from mpi4py import MPI
 
-from fingertip_dolfinx.geometry3d import half_ellipsoid_area_and_mean_curvature, load_fingertip3d
-from fingertip_dolfinx.mesh import CELL_TAGS, FACET_TAGS_3D, region_areas
-from fingertip_dolfinx.mesh3d import build_mesh3d
+from fingertip_dolfinx.geometry.fingertip3d import (
+    half_ellipsoid_area_and_mean_curvature,
+    load_fingertip3d,
+)
+from fingertip_dolfinx.geometry.mesh import CELL_TAGS, FACET_TAGS_3D, region_areas
+from fingertip_dolfinx.geometry.mesh3d import build_mesh3d
 
 
 def coarse(h: float, half: bool = False):
@@ -143,7 +146,7 @@ def test_the_distributed_mesh_has_the_serial_volume_and_cells(full):
 
 def test_the_mesh_command_picks_3d_by_the_file_and_writes_readable_tags(tmp_path):
     from fingertip_dolfinx.cli import main
-    from fingertip_dolfinx.mesh import read_xdmf
+    from fingertip_dolfinx.geometry.mesh import read_xdmf
 
     out = tmp_path / "mesh3d"
     assert main(["mesh", "--section", "male-index-3d", "--min-size", "1.6", "--max-size", "1.6",
@@ -162,7 +165,7 @@ def test_the_lofted_tip_cap_is_close_to_the_ideal_shapes():
     # sections and at the flat apex disc (alpha = 88 deg: c (1 - sin 88 deg) = 4.3e-3 mm) they
     # depart from the half-ellipsoid and its parallel surface by a few micrometres, far below
     # the element sizes (>= 0.1 mm). Measured: 5.8e-3 mm; skin 0.798-0.804 mm.
-    from fingertip_dolfinx.mesh3d import cap_deviations
+    from fingertip_dolfinx.geometry.mesh3d import cap_deviations
 
     tip = load_fingertip3d()
     deviation = cap_deviations(tip)

@@ -14,9 +14,8 @@ from dolfinx import fem
 from dolfinx.mesh import create_unit_square
 from mpi4py import MPI
 
-from fingertip_dolfinx.admissibility import Admissibility, Compaction
 from fingertip_dolfinx.errors import InputError
-from fingertip_dolfinx.mesh import build_mesh
+from fingertip_dolfinx.geometry.mesh import build_mesh
 from fingertip_dolfinx.model import (
     BiphasicFlow,
     Elastic,
@@ -28,10 +27,11 @@ from fingertip_dolfinx.model import (
     Viscoelastic,
     compose_laws,
 )
+from fingertip_dolfinx.physics.admissibility import Admissibility, Compaction
+from fingertip_dolfinx.physics.tissues import REGIONS, WU2004, load_materials, tissues_from_dict
 from fingertip_dolfinx.problem import FingertipProblem
 from fingertip_dolfinx.scene import load_scene
 from fingertip_dolfinx.stepping import DEFAULT_PETSC_OPTIONS, TimeStepper
-from fingertip_dolfinx.tissues import REGIONS, WU2004, load_materials, tissues_from_dict
 
 COARSE = ["section.mesh.min_size=0.2", "section.mesh.max_size=1.0", "section.mesh.bone_size=2.0"]
 #: A homogeneous stretch (diagonal: principal stretches λ1, λ2, λ3 = 1) and a sheared state.

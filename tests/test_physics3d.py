@@ -24,10 +24,10 @@ import pytest
 from mpi4py import MPI
 from scipy.optimize import brentq
 
-from fingertip_dolfinx import materials as mat
-from fingertip_dolfinx.indenters import Bar, Sphere
+from fingertip_dolfinx.geometry.indenters import Bar, Sphere
 from fingertip_dolfinx.loading import RampHold
 from fingertip_dolfinx.model import ModelOptions
+from fingertip_dolfinx.physics import materials as mat
 from fingertip_dolfinx.problem import FingertipProblem
 from fingertip_dolfinx.stepping import DEFAULT_PETSC_OPTIONS, StepOptions, TimeStepper
 from fingertip_dolfinx.studies.problems import (

@@ -7,9 +7,9 @@ import ufl
 from dolfinx import fem, mesh
 from mpi4py import MPI
 
-from fingertip_dolfinx import materials as mat
-from fingertip_dolfinx import poroelasticity as poro
 from fingertip_dolfinx.errors import CompactionError
+from fingertip_dolfinx.physics import materials as mat
+from fingertip_dolfinx.physics import poroelasticity as poro
 from fingertip_dolfinx.stepping import StepOptions, TimeStepper
 from fingertip_dolfinx.studies.problems import ConfinedBlock, confined_drained_stress
 

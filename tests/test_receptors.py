@@ -10,9 +10,7 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from fingertip_dolfinx.errors import InputError
-from fingertip_dolfinx.geometry import load_section
-from fingertip_dolfinx.receptors import (
+from fingertip_dolfinx.afferents.receptors import (
     LIF,
     RECEPTOR_COLUMNS,
     afferent_responses,
@@ -23,6 +21,8 @@ from fingertip_dolfinx.receptors import (
     saturate,
     threshold_amplitude,
 )
+from fingertip_dolfinx.errors import InputError
+from fingertip_dolfinx.geometry.section import load_section
 
 COARSE = ["section.mesh.min_size=0.2", "section.mesh.max_size=1.0", "section.mesh.bone_size=2.0",
           "output.profile_points=61", "output.pictures=false", 'output.receptors="default"']
@@ -218,11 +218,11 @@ def test_cauchy_stress_is_each_laws_own_at_the_accepted_state():
     bone: the DG1 field is F S Fᵀ/J with S = g∞ S_e + Σ g_i h_i, and F S_e Fᵀ/J (SVK)."""
     from dolfinx import fem, mesh
 
-    from fingertip_dolfinx.kinematics import deformation_gradient
-    from fingertip_dolfinx.materials import cauchy_stress, second_piola_kirchhoff
     from fingertip_dolfinx.model import Elastic, State, Viscoelastic
+    from fingertip_dolfinx.physics.kinematics import deformation_gradient
+    from fingertip_dolfinx.physics.materials import cauchy_stress, second_piola_kirchhoff
+    from fingertip_dolfinx.physics.tissues import WU2004
     from fingertip_dolfinx.post import CauchyStress
-    from fingertip_dolfinx.tissues import WU2004
 
     msh = mesh.create_unit_square(MPI.COMM_WORLD, 3, 3)
     n = msh.topology.index_map(2).size_local + msh.topology.index_map(2).num_ghosts

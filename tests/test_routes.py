@@ -11,11 +11,12 @@ import pytest
 from mpi4py import MPI
 
 import fingertip_dolfinx as ft
-from fingertip_dolfinx import adaptivity, frequency_response, runner
+from fingertip_dolfinx import frequency_response, runner
 from fingertip_dolfinx.cli import main
 from fingertip_dolfinx.errors import InputError
 from fingertip_dolfinx.keys import KEYS
 from fingertip_dolfinx.outputs import read_csv
+from fingertip_dolfinx.studies import adaptivity
 from fingertip_dolfinx.studies.fidelity import LADDER
 
 #: A coarse one-point run in steps of 0.5 s, no pictures: ~20 s.

@@ -136,7 +136,7 @@ def test_two_point_sweep_reproduces_the_papers_trends(tmp_path_factory):
     """MODEL.md §4: the normalised variations of e11, e22 and SED change little from d = 4 to
     3 mm and drop sharply from 3 to 2 mm; u2's falls steadily with d. Under mpiexec the three
     scenes run side by side."""
-    from fingertip_dolfinx.sweep import run_sweep
+    from fingertip_dolfinx.studies.sweep import run_sweep
 
     comm = MPI.COMM_WORLD
     out = comm.bcast(tmp_path_factory.mktemp("sweep") if comm.rank == 0 else None, root=0)
@@ -180,7 +180,7 @@ def test_shear_variation_is_the_peak_to_peak_around_each_point():
     """e12 is odd and changes sign under each bar: its normalised variation compares the
     peak-to-peak over one bar width around the contact point and around the centre. Two sharp
     steps of height 2 at the bars, flat between them: ≈ 1; a straight line: exactly 0."""
-    from fingertip_dolfinx.sweep import normalized_variation
+    from fingertip_dolfinx.studies.sweep import normalized_variation
 
     x = np.linspace(-6.0, 6.0, 2401)
     d = 3.0
@@ -206,7 +206,7 @@ def test_a_run_without_pictures_writes_the_numbers_only(tmp_path, monkeypatch):
 
 @pytest.mark.parametrize("name", ["line-load-3d", "2pt-3d", "probe-3d"])
 def test_the_3d_scenes_load_with_a_3d_fingertip(name):
-    from fingertip_dolfinx.geometry3d import Fingertip3D
+    from fingertip_dolfinx.geometry.fingertip3d import Fingertip3D
 
     scene = load_scene(name)
     assert isinstance(scene.section, Fingertip3D) and scene.section.half
@@ -243,7 +243,7 @@ def test_the_one_percent_line_load_is_the_line_load_on_a_cheaper_mesh():
 def test_sweep_spots_sit_under_the_bars_and_midway_at_the_output_depth():
     # normalized_variation reads the fields at x = ±d/2 (the bar centres) and 0, at the first
     # output depth: the discs must follow the bars as the spacing changes
-    from fingertip_dolfinx.sweep import sweep_scenes
+    from fingertip_dolfinx.studies.sweep import sweep_scenes
 
     spacings = [1.5, 3.0]
     for d, scene in zip(spacings, sweep_scenes("2pt", spacings, ["section.mesh.min_size=0.2"],

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from fingertip_dolfinx import materials as mat
 from fingertip_dolfinx.loading import RampHold
+from fingertip_dolfinx.physics import materials as mat
 from fingertip_dolfinx.stepping import StepOptions, TimeStepper
 from fingertip_dolfinx.studies.problems import (
     ConfinedBlock,

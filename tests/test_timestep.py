@@ -16,9 +16,10 @@ import pytest
 from dolfinx import fem, mesh
 from mpi4py import MPI
 
-from fingertip_dolfinx import materials as mat
-from fingertip_dolfinx.kinematics import deformation_gradient
 from fingertip_dolfinx.loading import RampHold
+from fingertip_dolfinx.physics import materials as mat
+from fingertip_dolfinx.physics.kinematics import deformation_gradient
+from fingertip_dolfinx.physics.viscoelasticity import QuasiLinearViscoelasticity
 from fingertip_dolfinx.stepping import (
     StepOptions,
     TimeStepper,
@@ -27,7 +28,6 @@ from fingertip_dolfinx.stepping import (
     milne_factor,
 )
 from fingertip_dolfinx.studies.problems import ConfinedBlock, Terzaghi, prony_ramp_integral
-from fingertip_dolfinx.viscoelasticity import QuasiLinearViscoelasticity
 
 TIGHT = {"snes_rtol": 1e-12, "snes_atol": 1e-14}
 

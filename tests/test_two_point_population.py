@@ -10,7 +10,7 @@ import pytest
 from mpi4py import MPI
 from scipy.optimize import brentq, minimize_scalar
 
-from fingertip_dolfinx.sweep import (
+from fingertip_dolfinx.studies.sweep import (
     RESOLVED,
     dip_ratio,
     population_profile,

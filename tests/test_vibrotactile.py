@@ -9,9 +9,14 @@ import math
 import numpy as np
 import pytest
 
-from fingertip_dolfinx import vibrotactile as vt
+from fingertip_dolfinx.afferents import vibrotactile as vt
+from fingertip_dolfinx.afferents.receptors import (
+    LIF,
+    constant_current_rate,
+    lif_spikes,
+    load_receptors,
+)
 from fingertip_dolfinx.errors import InputError
-from fingertip_dolfinx.receptors import LIF, constant_current_rate, lif_spikes, load_receptors
 
 N = vt.SAMPLES
 INTERP = (2 * math.pi / N) ** 2 / 8  # relative error of J's linear interpolation (smooth parts)
@@ -214,7 +219,7 @@ def test_agrees_with_the_sampled_threshold_of_receptors():
     rest) and I0 here (exact rates, periodic state) at frequencies where the start-up does not
     matter: both to their rtol (1e-4, 1e-3) plus the differences' O((2π/400)²) = 2.5e-4 and the
     interpolation error here."""
-    from fingertip_dolfinx.receptors import threshold_amplitude
+    from fingertip_dolfinx.afferents.receptors import threshold_amplitude
 
     pop = load_receptors()
     for name, f in (("RA", 5.0), ("PC", 20.0)):

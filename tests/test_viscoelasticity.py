@@ -11,10 +11,10 @@ import pytest
 from dolfinx import fem, mesh
 from mpi4py import MPI
 
-from fingertip_dolfinx import materials as mat
-from fingertip_dolfinx.kinematics import deformation_gradient
+from fingertip_dolfinx.physics import materials as mat
+from fingertip_dolfinx.physics.kinematics import deformation_gradient
+from fingertip_dolfinx.physics.viscoelasticity import QuasiLinearViscoelasticity
 from fingertip_dolfinx.studies.problems import prony_ramp_integral
-from fingertip_dolfinx.viscoelasticity import QuasiLinearViscoelasticity
 
 #: Prony series of 1, 2 and 3 terms. Three: the fast fingertip relaxation Pawluk and Howe
 #: (1999) measured has time constants of a few ms, ~0.1 s and ~1 s; these τ_i (4 ms, 70 ms,

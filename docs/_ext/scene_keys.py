@@ -19,16 +19,8 @@ from pathlib import Path
 
 def tables():
     """(TOML table, option class, note) for every table whose keys are a dataclass's fields."""
-    from fingertip_dolfinx import (
-        geometry,
-        geometry3d,
-        harmonic_options,
-        indenters,
-        loading,
-        model,
-        scene,
-        stepping,
-    )
+    from fingertip_dolfinx import harmonic_options, loading, model, scene, stepping
+    from fingertip_dolfinx.geometry import fingertip3d, indenters, section
 
     rows = [
         ("[model]", model.ModelOptions, ""),
@@ -36,8 +28,8 @@ def tables():
         ("[output]", scene.Outputs, ""),
         ("[accuracy]", scene.Accuracy, ""),
         ("[harmonic]", harmonic_options.HarmonicOptions, ""),
-        ("[section.mesh]", geometry.MeshOptions, ""),
-        ("[section] (3D: `dimension = 3`)", geometry3d.Fingertip3D,
+        ("[section.mesh]", section.MeshOptions, ""),
+        ("[section] (3D: `dimension = 3`)", fingertip3d.Fingertip3D,
          "`section` is the 2D cross-section carried along z; `name` is set from the file."),
     ]
     for kind, cls in loading.KINDS.items():
@@ -148,12 +140,13 @@ def keys_of_reference() -> dict[str, set[str]]:
 
 #: Headings of the API page, by the module that defines a name.
 API_GROUPS = {
-    "Scenes and runs": ("scene", "routes", "runner", "result", "adaptivity"),
-    "Materials": ("tissues", "materials"),
-    "Geometry, meshes, indenters and protocols": ("geometry", "mesh", "geometry3d", "mesh3d",
-                                                   "indenters", "loading"),
+    "Scenes and runs": ("scene", "routes", "runner", "result", "studies.adaptivity"),
+    "Materials": ("physics.tissues", "physics.materials"),
+    "Geometry, meshes, indenters and protocols": ("geometry.section", "geometry.mesh",
+                                                   "geometry.fingertip3d", "geometry.mesh3d",
+                                                   "geometry.indenters", "loading"),
     "Model, problem and solver": ("model", "problem", "stepping"),
-    "Receptors and afferents": ("receptors",),
+    "Receptors and afferents": ("afferents.receptors",),
     "Errors": ("errors",),
 }
 

@@ -65,9 +65,9 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..contact import NonConservativeContactWarning
 from ..errors import FingertipError
 from ..loading import step_times
+from ..physics.contact import NonConservativeContactWarning
 from .controllers import (
     BACKWARD_EULER,
     Outcome,

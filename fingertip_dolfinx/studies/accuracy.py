@@ -498,8 +498,8 @@ def _run_the_loop(scene_name, settings, start, out: Path, tol: float,
                   progress: bool) -> tuple[dict | None, str | None]:
     """`adapt` from the mesh sizes `start`: (its report, None), or after a failure (the
     adapt.json it wrote, or None; the failure's message)."""
-    from ..adaptivity import AdaptOptions, adapt
     from ..scene import load_scene
+    from .adaptivity import AdaptOptions, adapt
 
     scene = load_scene(scene_name, list(settings) + _mesh_settings(*start))
     try:

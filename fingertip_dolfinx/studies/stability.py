@@ -39,11 +39,11 @@ import ufl
 from dolfinx import fem, mesh
 from mpi4py import MPI
 
-from .. import materials as mat
-from ..drucker import check_state, drucker_check
 from ..errors import CompactionError, ConvergenceError, FingertipError, MaterialInstabilityError
-from ..kinematics import deformation_gradient, eigen_sum
 from ..loading import PiecewiseLinear
+from ..physics import materials as mat
+from ..physics.drucker import check_state, drucker_check
+from ..physics.kinematics import deformation_gradient, eigen_sum
 from ..stepping.diagnosis import SNES_REASONS
 from ..stepping.options import StepOptions
 from ..stepping.stepper import TimeStepper

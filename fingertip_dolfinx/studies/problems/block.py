@@ -14,13 +14,13 @@ import ufl
 from dolfinx import fem, mesh
 from mpi4py import MPI
 
-from ... import materials as mat
-from ...admissibility import Admissibility, Compaction
-from ...inertia import Inertia
-from ...kinematics import deformation_gradient
-from ...poroelasticity import biphasic_residuals
+from ...physics import materials as mat
+from ...physics.admissibility import Admissibility, Compaction
+from ...physics.inertia import Inertia
+from ...physics.kinematics import deformation_gradient
+from ...physics.poroelasticity import biphasic_residuals
+from ...physics.viscoelasticity import QuasiLinearViscoelasticity
 from ...state import SteppableState
-from ...viscoelasticity import QuasiLinearViscoelasticity
 from .wiring import QUADRATURE_DEGREE, graded
 
 #: M = K0 + 4μ0/3 (MPa): the small-strain stiffness of a laterally confined column (the

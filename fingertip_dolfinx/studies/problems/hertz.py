@@ -14,9 +14,9 @@ import ufl
 from dolfinx import fem, mesh
 from mpi4py import MPI
 
-from ... import materials as mat
-from ...contact import NitscheContact, Obstacle
-from ...indenters import Cylinder, Sphere
+from ...geometry.indenters import Cylinder, Sphere
+from ...physics import materials as mat
+from ...physics.contact import NitscheContact, Obstacle
 from .wiring import support_reaction
 
 

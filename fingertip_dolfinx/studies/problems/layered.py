@@ -8,7 +8,7 @@ import numpy as np
 from dolfinx import mesh
 from mpi4py import MPI
 
-from ...mesh import CELL_TAGS, FACET_TAGS_3D, FingertipMesh
+from ...geometry.mesh import CELL_TAGS, FACET_TAGS_3D, FingertipMesh
 
 #: Slab tops (mm) of the layered block from its bottom y = −3: skin 0.5 mm, subcutaneous 3 mm,
 #: bone 0.5 mm, nail 0.5 mm (round numbers of the section's proportions, not its geometry).

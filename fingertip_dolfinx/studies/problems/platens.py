@@ -11,8 +11,8 @@ from typing import NamedTuple
 import numpy as np
 from mpi4py import MPI
 
-from ... import materials as mat
 from ...loading import RampHold
+from ...physics import materials as mat
 from ...stepping.options import StepOptions
 from ...stepping.stepper import TimeStepper
 from .block import ConfinedBlock, UnconfinedBlock, confined_drained_stress, confined_modulus

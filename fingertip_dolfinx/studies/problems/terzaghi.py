@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
-from ... import materials as mat
+from ...physics import materials as mat
 from .block import ConfinedBlock, confined_modulus
 
 

@@ -12,10 +12,10 @@ import ufl
 from dolfinx import fem, mesh
 from mpi4py import MPI
 
-from ... import materials as mat
 from ...harmonic import Linearisation, ViscousPart, complex_modulus, qlv_tangent
-from ...kinematics import deformation_gradient
-from ...viscoelasticity import QuasiLinearViscoelasticity
+from ...physics import materials as mat
+from ...physics.kinematics import deformation_gradient
+from ...physics.viscoelasticity import QuasiLinearViscoelasticity
 from .block import confined_modulus
 from .wiring import QUADRATURE_DEGREE
 

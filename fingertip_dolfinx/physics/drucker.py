@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import InputError, MaterialInstabilityError
+from ..errors import InputError, MaterialInstabilityError
 from .materials import Hyperfoam
 
 

@@ -44,7 +44,7 @@ import ufl
 from dolfinx import fem
 from mpi4py import MPI
 
-from .errors import InputError
+from ..errors import InputError
 
 
 def wbz_parameters(rho_inf: float) -> tuple[float, float, float]:

@@ -18,9 +18,9 @@ from dataclasses import MISSING, dataclass, field, fields
 import numpy as np
 import ufl
 
-from .errors import CompactionError, InputError
+from ..errors import CompactionError, InputError
+from ..validation import check_keys
 from .kinematics import eigen_sum, right_cauchy_green
-from .validation import check_keys
 
 # --------------------------------------------------------------------------------------------
 # validation helpers

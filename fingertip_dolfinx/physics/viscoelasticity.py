@@ -20,7 +20,7 @@ import numpy as np
 import ufl
 from dolfinx import fem
 
-from .errors import InputError
+from ..errors import InputError
 from .materials import Prony
 
 

@@ -26,7 +26,7 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from .errors import InputError
+from ..errors import InputError
 
 
 def from_holder(comm: MPI.Comm, holds: bool, value):

@@ -78,9 +78,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .afferents.transduction import Afferents, site_inputs, spike_flags
-from .errors import InputError
+from ..errors import InputError
 from .receptors import LIF, ReceptorClass, rectified_input, saturate
+from .transduction import Afferents, site_inputs, spike_flags
 
 SAMPLES = 64  # samples of J per cycle (divisible by 4): J interpolation error <= 1.2e-3 relative
 SETTLE = 3  # cycles discarded at least (more for slow membranes, see _settle)
@@ -642,7 +642,7 @@ def plot_threshold_curves(curves, path, *, published=PUBLISHED, title: str = "",
     `curves`: VibrationThresholds, one per class. Returns the legend's entries."""
     from matplotlib.figure import Figure
 
-    from .figures import plain_log_ticks
+    from ..plotting.figures import plain_log_ticks
 
     colours = {"SA1": "tab:blue", "RA": "tab:green", "PC": "tab:red",
                "psychophysics": "0.5"}

@@ -38,8 +38,8 @@ from dolfinx import fem, plot
 from dolfinx import mesh as dmesh
 from matplotlib.ticker import MaxNLocator
 
+from ..geometry.indenters import Indenter
 from .figures import SMALLER_UNITS, display_unit, unit_of
-from .indenters import Indenter
 
 # Off-screen rendering needs no display: VTK first tries X, fails, says so on stderr at every
 # render ("bad X server connection"), then renders off-screen anyway. Keep its errors only.
@@ -588,8 +588,8 @@ def plot_tagged_mesh3d(fm, path: Path, title: str | None = None) -> Path | None:
 
     Collective (every rank must call it); rank 0 writes `path` and returns it.
     """
+    from ..geometry.mesh import CELL_TAGS, FACET_TAGS_3D
     from .figures import FACET_COLOURS, REGION_COLOURS
-    from .mesh import CELL_TAGS, FACET_TAGS_3D
 
     cells, cell_values = _gather_entities(fm, fm.cell_tags)
     facets, facet_values = _gather_entities(fm, fm.facet_tags)

@@ -76,7 +76,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .afferents.transduction import (
+from ..datafiles import find, read_toml
+from ..errors import InputError
+from ..validation import check_keys, number, positive
+from .transduction import (
     Afferents,
     load_afferents,
     model_depths,
@@ -84,9 +87,6 @@ from .afferents.transduction import (
     site_inputs,
     spike_times,
 )
-from .datafiles import find, read_toml
-from .errors import InputError
-from .validation import check_keys, number, positive
 
 #: The stimulus quantities a class may read: column of receptors.csv, sign (compression > 0),
 #: unit.
@@ -274,7 +274,7 @@ class ReceptorPopulation:
 
     def sites(self, outer) -> Sites:
         """The sites on a section whose outer surface is the ellipse `outer`."""
-        from .post import depth_curve
+        from ..post import depth_curve
 
         if not 0 < self.half_width < outer.a:
             raise InputError("receptors: sites.half_width", f"{self.half_width} mm must lie in "
@@ -358,7 +358,7 @@ def load_receptors(source: str | Path = DEFAULT_SET,
     InputError
         For a missing file, an unknown key or an impossible value.
     """
-    from .tissues import merge
+    from ..physics.tissues import merge
 
     path = find("receptors", source, "receptor set")
     data = merge(read_toml(path), overrides or {})
@@ -596,7 +596,7 @@ def afferent_responses(result, population: ReceptorPopulation | str | None = Non
         If the run wrote no receptors.csv.
     """
     if not hasattr(result, "receptors"):
-        from .result import Result
+        from ..result import Result
 
         result = Result(result)
     if population is None:
@@ -715,7 +715,7 @@ def pressure_sampling(problem, sampler, points: np.ndarray):
         return None, None
     from dolfinx import fem  # here: reading receptor data needs no DOLFINx
 
-    from .post import PointSampler
+    from ..post import PointSampler
 
     tags = problem.fmesh.cell_tags
     region = fem.Function(fem.functionspace(problem.mesh, ("DG", 0)))
@@ -736,8 +736,8 @@ class ReceptorRecorder:
     def __init__(self, problem, derived, population: ReceptorPopulation, outer, out: Path,
                  comm, resume_after: float | None = None):
 
-        from .outputs import CsvLog
-        from .post import CauchyStress, PointSampler
+        from ..outputs import CsvLog
+        from ..post import CauchyStress, PointSampler
 
         self.problem, self.derived, self.population = problem, derived, population
         self.sites = population.sites(outer)

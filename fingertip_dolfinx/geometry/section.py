@@ -29,8 +29,8 @@ import numpy as np
 from scipy.integrate import quad
 from scipy.optimize import brentq
 
-from .datafiles import builtin_dir, find, read_toml
-from .errors import InputError
+from ..datafiles import builtin_dir, find, read_toml
+from ..errors import InputError
 
 #: The built-in sections (inside the package: `fingertip_dolfinx/data/sections/`).
 SECTIONS_DIR = builtin_dir("sections")

@@ -49,8 +49,8 @@ from dolfinx import fem
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from .errors import InputError
-from .indenters import Indenter
+from ..errors import InputError
+from ..geometry.indenters import Indenter
 
 #: The surface elements under an indenter's tip must not be longer than this many tip radii:
 #: a tip narrower than the spacing of the surface quadrature points slips between them and

@@ -25,8 +25,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from .datafiles import find, read_toml
-from .errors import InputError
+from ..datafiles import find, read_toml
+from ..errors import InputError
+from ..validation import check_keys, positive
 from .materials import (
     Biphasic,
     ConstantPermeability,
@@ -35,7 +36,6 @@ from .materials import (
     LinearElastic,
     Prony,
 )
-from .validation import check_keys, positive
 
 REGIONS = ("skin", "subcutaneous", "bone", "nail")
 DEFAULT_SET = "wu2004"

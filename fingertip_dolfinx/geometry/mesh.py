@@ -27,7 +27,7 @@ from dolfinx import fem, io
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
-from .geometry import Section
+from .section import Section
 
 CELL_TAGS = {"skin": 1, "subcutaneous": 2, "bone": 3, "nail": 4}
 FACET_TAGS = {

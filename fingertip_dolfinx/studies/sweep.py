@@ -41,8 +41,8 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from .figures import plot_spacing_profiles
-from .outputs import read_csv, write_json
+from ..outputs import read_csv, write_json
+from ..plotting.figures import plot_spacing_profiles
 
 QUANTITIES = ("e11", "e22", "e12", "u2", "sed")
 _COLUMNS = {"e11": "e11", "e22": "e22", "e12": "e12", "u2": "u2_mm", "sed": "sed_MPa"}
@@ -109,8 +109,8 @@ def dip_ratio(profile) -> float:
 def population_profile(run_dir, time_s: float, name: str = "SA1") -> tuple[np.ndarray, ...]:
     """(x_mm, rate) of a class's SED-rate model (k SED) at its sites at `time_s`, from a run
     written with `output.receptors`, ordered along x."""
-    from .receptors import load_receptors
-    from .result import Result
+    from ..afferents.receptors import load_receptors
+    from ..result import Result
 
     table = Result(run_dir).receptors()
     rows = (table["class"] == name) & np.isclose(table["time_s"], time_s)
@@ -123,7 +123,7 @@ def population_profile(run_dir, time_s: float, name: str = "SA1") -> tuple[np.nd
 def _recorded_gain(path: Path, name: str) -> float:
     import json
 
-    from .receptors import receptors_from_dict
+    from ..afferents.receptors import receptors_from_dict
 
     return receptors_from_dict(json.loads(path.read_text()), str(path))[name].sed_gain
 
@@ -152,7 +152,7 @@ def run_sweep(scene_name: str, spacings, out: Path, overrides=(), progress=True,
     `population`: the runs sample the default receptor set) the SA1 population's. With
     `spots`, each spacing's mesh gets a fine disc (`section.mesh.spots`) at the three points
     the variations are read at (`sweep_scenes`)."""
-    from .runner import run_side_by_side
+    from ..runner import run_side_by_side
 
     world = MPI.COMM_WORLD
     out = Path(out)
@@ -204,7 +204,7 @@ def sweep_scenes(scene_name: str, spacings, overrides=(), spots: bool = False) -
     point where `normalized_variation` reads the fields: under both bar centres and midway, at
     the first output depth: the key outputs there are read on fine elements while the rest of
     the mesh stays coarse (the accuracy bought: docs/benchmarks/measurements.md)."""
-    from .scene import load_scene
+    from ..scene import load_scene
 
     scenes = []
     for d in spacings:

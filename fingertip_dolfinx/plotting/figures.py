@@ -13,7 +13,7 @@ from matplotlib.figure import Figure  # no pyplot: no backend is chosen, none is
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from .mesh import CELL_TAGS, FACET_TAGS, FingertipMesh
+from ..geometry.mesh import CELL_TAGS, FACET_TAGS, FingertipMesh
 
 REGION_COLOURS = {
     "skin": "#e8a98c", "subcutaneous": "#f6e3a1", "bone": "#d9d9d9", "nail": "#a9cbe8",

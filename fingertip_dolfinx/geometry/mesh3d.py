@@ -38,8 +38,7 @@ import numpy as np
 from dolfinx import io
 from mpi4py import MPI
 
-from .geometry import Ellipse
-from .geometry3d import Fingertip3D, ellipsoid_distance
+from .fingertip3d import Fingertip3D, ellipsoid_distance
 from .mesh import (
     CELL_TAGS,
     FACET_TAGS_3D,
@@ -54,6 +53,7 @@ from .mesh import (
     graded_size,
     region_areas,
 )
+from .section import Ellipse
 
 #: Sections of the lofted rounded ends (`_dome`), at alpha = 0 .. CAP_LAST_ANGLE (deg): with 12
 #: the skin on the cap is 0.798-0.804 mm thick (0.8 ideal; the module's docstring).

@@ -28,8 +28,8 @@ from typing import Any, ClassVar
 import numpy as np
 import ufl
 
-from .datafiles import builtin_dir, find, read_toml
-from .errors import InputError
+from ..datafiles import builtin_dir, find, read_toml
+from ..errors import InputError
 
 #: The built-in indenters, loadable by name (`load_indenter("wedge")`).
 BUILTIN_DIR = builtin_dir("indenters")

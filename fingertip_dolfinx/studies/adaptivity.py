@@ -84,11 +84,11 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from .errors import ConvergenceError, InputError
-from .keys import DEFLECTION_POINTS, KEY_OUTPUTS, KEYS, check_scene, key_outputs, read_key
-from .mesh import SIZE_GROWTH, SizeMap
-from .post import depth_curve
-from .stepping.tolerance import TIME_SHARE, tolerance_steps, verify_time
+from ..errors import ConvergenceError, InputError
+from ..geometry.mesh import SIZE_GROWTH, SizeMap
+from ..keys import DEFLECTION_POINTS, KEY_OUTPUTS, KEYS, check_scene, key_outputs, read_key
+from ..post import depth_curve
+from ..stepping.tolerance import TIME_SHARE, tolerance_steps, verify_time
 
 #: |x| (mm) of the farthest surface deflection among the key outputs.
 DEFLECTION_REACH = max(DEFLECTION_POINTS)
@@ -399,7 +399,7 @@ def measured_ratio(old: dict, new: dict, zone: Zone) -> float:
 def level_data(run_dir: Path, scene, options: AdaptOptions) -> dict:
     """What the loop needs from a finished run (rank 0): the cells (corners, areas, sizes,
     centroids, neighbours), the ZZ density (the largest over the output times) and the zones."""
-    from .result import Result
+    from ..result import Result
 
     result = Result(run_dir)
     times = sorted(result.output_times) or list(scene.output_times)
@@ -506,7 +506,7 @@ def check_time(scene, final: dict, out: Path, options: AdaptOptions, say, comm) 
     with tolerances 4 (and more) times tighter, until every key output's estimated time error
     is within options.time_tol. Run i > 0 goes to `out/<level>-time-<i>/`; the last is the
     answer published. Returns adapt.json's `time` table."""
-    from .runner import run_scene
+    from ..runner import run_scene
 
     dirs, summaries = [Path(final["run"])], []
 
@@ -583,7 +583,7 @@ def _mesh_levels(scene, base, out: Path, options: AdaptOptions, say, progress: b
     """The mesh loop, steps 1-4 of the module docstring, from level 0's scene `base`; options
     with tol = the mesh's share. Returns (the levels' records, the last level's scene, the
     failure or None, why the loop stopped)."""
-    from .runner import run_scene
+    from ..runner import run_scene
 
     floor = options.floor or default_floor(base)
     levels, data = [], []

@@ -30,10 +30,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .datafiles import read_toml
-from .errors import InputError
-from .geometry import MIN_TISSUE_GAP, MeshOptions, Section, section_from_dict, section_path
-from .validation import check_keys, number, positive
+from ..datafiles import read_toml
+from ..errors import InputError
+from ..validation import check_keys, number, positive
+from .section import MIN_TISSUE_GAP, MeshOptions, Section, section_from_dict, section_path
 
 #: The 3D keys of each table; every other key allowed is one of the 2D section's.
 _KEYS_3D = {

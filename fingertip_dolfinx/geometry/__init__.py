@@ -1,0 +1,1 @@
+"""Shapes as data, their gmsh models and tagged meshes, and the rigid indenters."""

@@ -1,0 +1,1 @@
+"""Matplotlib curves and pyvista pictures of a run."""
