@@ -14,7 +14,7 @@ MARKER = "# long:"
 #: this list when the split is merged).
 BEING_SPLIT = {
     "problem.py": {"FingertipProblem.__init__"},
-    "receptors.py": {"afferent_responses"},
+    "afferents/receptors.py": {"afferent_responses"},
 }
 
 
