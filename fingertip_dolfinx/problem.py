@@ -85,6 +85,14 @@ DEFAULT_OPTIONS = ModelOptions()
 JIT_OPTIONS_3D = {"cffi_extra_compile_args": ["-O1", "-g0"]}
 
 
+def _check_inputs(fmesh: FingertipMesh, indenters: Sequence[Indenter]) -> None:
+    if not indenters:
+        raise InputError("scene.indenters", "no indenter given.", "give at least one.")
+    for name in REQUIRED_TAGS:
+        if name not in fmesh.names:
+            raise InputError("mesh", f"the tag {name!r} is missing.", "rebuild the mesh.")
+
+
 class FingertipProblem(SteppableState):
     """Forms, unknowns, supports and loads of the fingertip under rigid indenters.
 
@@ -115,11 +123,7 @@ class FingertipProblem(SteppableState):
         tissues: Tissues = WU2004,
         options: ModelOptions = DEFAULT_OPTIONS,
     ):
-        if not indenters:
-            raise InputError("scene.indenters", "no indenter given.", "give at least one.")
-        for name in REQUIRED_TAGS:
-            if name not in fmesh.names:
-                raise InputError("mesh", f"the tag {name!r} is missing.", "rebuild the mesh.")
+        _check_inputs(fmesh, indenters)
         self.fmesh, self.history, self.tissues, self.options = fmesh, history, tissues, options
         self.indenters = list(indenters)
         self.mesh = msh = fmesh.mesh
@@ -134,42 +138,53 @@ class FingertipProblem(SteppableState):
         #: series branches, per term and region) is a very long C function, which gcc compiles
         #: far faster at -O1 than at -O2 (times: docs/benchmarks/measurements.md).
         self.jit_options = JIT_OPTIONS_3D if self.gdim == 3 else None
-        self.V = fem.functionspace(msh, ("Lagrange", options.displacement_degree, (self.gdim,)))
+        self._unknowns_u()
+        cells = {r: fmesh.cell_tags.find(self.tags[r]) for r in REGIONS}
+        self.laws = compose_laws(tissues, options, State(
+            self.u, self.F, self.dt, options.quadrature_degree, cells))
+        self._residual(cells["subcutaneous"])
+        self.admissibility = self._admissibility(cells["subcutaneous"])
+        self.mark_accepted()
+        self.time = 0.0
+
+    def _unknowns_u(self) -> None:
+        """The displacement, its two earlier accepted values and F."""
+        self.V = fem.functionspace(self.mesh, ("Lagrange", self.options.displacement_degree,
+                                               (self.gdim,)))
         self.u = fem.Function(self.V, name="displacement")
         self.u_n = fem.Function(self.V, name="displacement_n")
         #: u at t_{n−1} and the weights (a₀, a₁, a₂) of J_{n+1}, J_n, J_{n−1} in Δt·dJ/dt of
         #: the biphasic mass balance: backward Euler (1, −1, 0) until the time stepper sets
         #: BDF2's (stepping.bdf2_weights). A Constant: switching schemes never recompiles.
         self.u_nm1 = fem.Function(self.V, name="displacement_nm1")
-        self.rate_weights = fem.Constant(msh, np.array([1.0, -1.0, 0.0]))
+        self.rate_weights = fem.Constant(self.mesh, np.array([1.0, -1.0, 0.0]))
         self.F = deformation_gradient(self.u)
-        cells = {r: fmesh.cell_tags.find(self.tags[r]) for r in REGIONS}
-        self.laws = compose_laws(tissues, options, State(
-            self.u, self.F, self.dt, options.quadrature_degree, cells))
 
+    def _residual(self, sub_cells: np.ndarray) -> None:
+        """The residuals from their named parts, the unknowns, the supports and the reaction."""
         v = ufl.TestFunction(self.V)
         R_u = self._region_stresses(v)
-        coupling, residuals_p = self._pressure(v, cells["subcutaneous"])
+        coupling, residuals_p = self._pressure(v, sub_cells)
         #: The pore pressure's term in the momentum balance (None without a pore law).
         self.pressure_coupling = coupling
         if coupling is not None:
             R_u += coupling
         R_u += self._contact(v)
         self.inertia = None
-        if options.inertia:  # no new term at all in a quasi-static run
+        if self.options.inertia:  # no new term at all in a quasi-static run
             R_u += self._inertia(v)
         self.residuals = [R_u, *residuals_p]
         self.unknowns = [self.u] + ([self.p] if self.p is not None else [])
         self.bcs, self._reaction_form = self._support(R_u, v)
 
+    def _admissibility(self, sub_cells: np.ndarray) -> Admissibility:
+        """The checks of a state: J > 0 everywhere, and with a pore law, J above compaction."""
         pore = self.laws.pore
         material = getattr(pore, "material", None)  # the biphasic law's (no flow: None)
         compaction = (None if pore is None else Compaction(
-            cells["subcutaneous"], pore.phi0, options.compaction_margin,
+            sub_cells, pore.phi0, self.options.compaction_margin,
             None if material is None else material.permeability.k0))
-        self.admissibility = Admissibility(self.F, msh, options.quadrature_degree, compaction)
-        self.mark_accepted()
-        self.time = 0.0
+        return Admissibility(self.F, self.mesh, self.options.quadrature_degree, compaction)
 
     # --- the parts of the residual --------------------------------------------------------------
     def _region_stresses(self, v) -> ufl.Form:
