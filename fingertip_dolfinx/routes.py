@@ -6,7 +6,7 @@
   (frequency_response.py: the small-signal response about the pressed state); it returns a
   `FrequencyResult` (result.py: K(ω), Z(ω), the receptor transfer functions, the thresholds);
 - with a tolerance (`tol`, else the scene's `[accuracy] tol`) or `max_levels`, to the
-  **adaptive loop** (adaptivity.py: meshes refined until every key output's estimated error
+  **adaptive loop** (studies.adaptivity: meshes refined until every key output's estimated error
   is below `tol`); it returns the `Result` of the answer, the finest level, whose files are
   copied into `out` (the loop's record: out/adapt.json, `adaptivity.read_adapt(out)`);
 - otherwise to **one time run** (runner.py); it returns its `Result`.
@@ -197,7 +197,7 @@ def _time(scene: Scene, out: Path, resume: bool, progress: bool, comm, say) -> R
 
 
 def _adaptive(scene: Scene, out: Path, tol, max_levels, resume, progress, comm, say) -> Result:
-    """The adaptive mesh loop (adaptivity.py) to `tol`, else the scene's [accuracy] tol; the
+    """The adaptive mesh loop (studies.adaptivity) to `tol`, else the scene's [accuracy] tol; the
     answer's files are in `out`."""
     from .result import Result
     from .studies.adaptivity import AdaptOptions, adapt

@@ -133,7 +133,7 @@ class Outputs:
 @dataclass(frozen=True)
 class Accuracy:
     """`[accuracy]`: ask for an accuracy instead of a mesh. With `tol` (a relative error, e.g.
-    0.01), `fingertip run` refines the mesh (`adaptivity.py`) until every key output's
+    0.01), `fingertip run` refines the mesh (`studies.adaptivity`) until every key output's
     estimated error is below it, in at most `max_levels` runs; without it (the default) the
     scene runs once on its own mesh."""
 

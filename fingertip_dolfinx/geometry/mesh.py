@@ -89,7 +89,7 @@ class SizeMap:
     """A target element size (mm) given at scattered points, read anywhere in the plane as the
     size at the nearest point: a piecewise-constant field on the Voronoi cells of `points`.
 
-    The adaptive loop (`adaptivity.py`) writes one per level, at the centroids of the previous
+    The adaptive loop (`studies.adaptivity`) writes one per level, at the centroids of the previous
     mesh's cells; `section.mesh.size_map` names its file. Calls are answered from a regular
     grid of nearest-point values (spacing: half the smallest size, at most `max_grid` nodes),
     built once with a KD-tree: gmsh asks for the size at ~10 points per element, and a grid

@@ -191,7 +191,8 @@ class MeshOptions:
     spot_size: float = 0.05  # mm
     spot_zone: float = 0.3  # mm, the disc's radius
     #: An .npz file of a size map (`mesh.SizeMap`: points and target sizes, written by the
-    #: adaptive loop, `adaptivity.py`): the size there, where finer than the fields above. "": none.
+    #: adaptive loop, `studies.adaptivity`): the size there, where finer than the fields
+    #: above. "": none.
     size_map: str = ""
 
     def __post_init__(self):

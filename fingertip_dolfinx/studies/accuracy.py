@@ -686,7 +686,7 @@ def _adaptive_table(adaptive: dict | None, short: dict) -> list[str]:
                   "true errors"), "", "**" + adaptive["sentence"] + "**", "",
              ("Per level: the true error against the reference above / the loop's "
               "estimate (none at level 0). The loop starts from the coarsest mesh of the "
-              "reference family (`adaptivity.py`)."), "",
+              "reference family (`studies.adaptivity`)."), "",
              "| level | cells | dofs | wall (s) | " + " | ".join(short[k] for k in KEYS)
              + " |", "| ---: | ---: | ---: | ---: | " + " | ".join("---:" for _ in KEYS)
              + " |"]
