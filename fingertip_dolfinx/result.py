@@ -266,8 +266,18 @@ class FrequencyResult:
 
 
 def load_result(out: str | Path) -> Result | FrequencyResult:
-    """The results of the run written into `out`: a `FrequencyResult` for the frequency
-    route's files, else a `Result`."""
+    """The results of the run written into `out`.
+
+    Parameters
+    ----------
+    out : str or Path
+        The run's output folder.
+
+    Returns
+    -------
+    Result or FrequencyResult
+        A `FrequencyResult` for the frequency route's files, else a `Result`.
+    """
     out = Path(out)
     if (out / "frequency_response.csv").exists() and not (out / "history.csv").exists():
         return FrequencyResult(out)

@@ -108,9 +108,21 @@ def run(scene: Scene | str | Path, out: str | Path, *,
 
 def route_of(scene: Scene, *, tol: float | None = None, max_levels: int | None = None,
              frequencies=None, state: str | None = None) -> str:
-    """The route `run` takes for `scene` with these arguments, nothing computed: "frequency"
-    (a `[harmonic]` table, `frequencies` or `state`), "adaptive" (`tol`, the scene's
-    `[accuracy] tol`, or `max_levels`) or "time"."""
+    """The route `run` takes for `scene` with these arguments, nothing computed.
+
+    Parameters
+    ----------
+    scene : Scene
+        The experiment.
+    tol, max_levels, frequencies, state
+        As for `run`.
+
+    Returns
+    -------
+    str
+        "frequency" (a `[harmonic]` table, `frequencies` or `state`), "adaptive" (`tol`, the
+        scene's `[accuracy] tol`, or `max_levels`) or "time".
+    """
     if frequencies is not None or state is not None or scene.harmonic is not None:
         return "frequency"
     if tol is None:

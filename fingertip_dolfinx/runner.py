@@ -87,8 +87,29 @@ def run(scene: Scene, out: str | Path, *, resume: bool = False, progress: bool =
 
 def run_scene(scene: Scene, out: str | Path, *, resume: bool = False, progress: bool = True,
               comm: MPI.Comm | None = None) -> dict:
-    """`run`, returning the summary (summary.json's content) instead of a Result. Resuming a
-    completed run of the same scene computes and writes nothing: it returns its summary."""
+    """One time run of `scene` into `out`, returning its summary instead of a `Result`.
+
+    Resuming a completed run of the same scene computes and writes nothing: it returns its
+    summary.
+
+    Parameters
+    ----------
+    scene : Scene
+        The experiment.
+    out : str or Path
+        The output folder (created; an earlier run's files there are replaced).
+    resume : bool, optional
+        Continue the run found in `out` from its last checkpoint (the scene must match it).
+    progress : bool, optional
+        Show a progress bar on rank 0.
+    comm : MPI.Comm, optional
+        The communicator (default: COMM_WORLD).
+
+    Returns
+    -------
+    dict
+        summary.json's content (`"status"`: "complete", "failed" or "interrupted").
+    """
     comm = comm or MPI.COMM_WORLD
     if resume:
         done = completed_summary(scene, Path(out), comm)

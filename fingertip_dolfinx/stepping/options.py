@@ -48,7 +48,11 @@ def check_linear(linear, where: str = "solver.linear") -> str:
 
 @dataclass
 class StepOptions:
-    """Adaptive time-step control (times in s)."""
+    """Adaptive time-step control, a scene's `[steps]` table (times in s).
+
+    Each field is a key of that table; its meaning, unit and default are in the comment next
+    to it and in the key reference (docs/reference/keys.md).
+    """
 
     dt_initial: float = 0.1  # s: the first step
     dt_min: float = 1e-5  # s: a step cut below this stops the run

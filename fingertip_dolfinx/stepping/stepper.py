@@ -126,7 +126,21 @@ class Steppable(Protocol):
 
 
 class TimeStepper:
-    """Drives a `Steppable` problem along a load history with adaptive implicit steps."""
+    """Drives a `Steppable` problem along a load history with adaptive implicit steps.
+
+    Parameters
+    ----------
+    problem : Steppable
+        The problem to advance (`FingertipProblem`, or a verification problem).
+    options : StepOptions, optional
+        The step control (default: `StepOptions()`).
+    petsc_options : dict, optional
+        PETSc options added to the Newton and linear solvers' defaults.
+    prefix : str, optional
+        The PETSc options prefix of this stepper's SNES.
+    linear : str, optional
+        The linear solver inside Newton: "direct" (MUMPS) or "iterative".
+    """
 
     def __init__(
         self,

@@ -108,21 +108,40 @@ SAFETY_OUT_OF_RANGE = 3.0  # three levels that oscillate or converge slower than
 class AdaptOptions:
     """Settings of the adaptive loop (see the module docstring).
 
-    tol: the relative error every key output must reach (estimated); max_levels: runs at most;
-    coarsen: level 0's min_size is the scene's times this (1: the scene's own mesh); order:
-    the convergence order p assumed (P2: 2.0-2.2 measured by the accuracy study, the smaller
-    taken) and the cap on an observed one; safety: aim at safety * tol, and leave a region
-    alone once its outputs are within that; first_ratio: the refinement of the output regions
-    after level 0; min_ratio/max_ratio: bounds of a level's ratio there; peak_radius: the
-    disc (mm) around each depth-curve peak; load_margin: the pulp band reaches this far (mm)
-    beyond the 3 mm deflections (or each indenter's footprint), and this deep;
-    weight_length: decay length (mm) of the indicator's weight outside the regions; floor:
-    the smallest size (mm; default `default_floor`);
-    max_dofs: stop before a level would exceed this many unknowns (estimated);
-    time_share: the share of tol that goes to the time error (`stepping.TIME_SHARE`; the mesh
-    gets tol (1 - time_share)), 0 to leave the scene's step control alone and refine the mesh
-    to the whole tol (the time error then neither controlled nor estimated);
-    max_time_runs: runs of the finest mesh at most in the time check (the first is its level).
+    Attributes
+    ----------
+    tol : float
+        The relative error every key output must reach (estimated).
+    max_levels : int
+        Runs at most.
+    coarsen : float
+        Level 0's min_size is the scene's times this (1: the scene's own mesh).
+    order : float
+        The convergence order p assumed (P2: 2.0-2.2 measured by the accuracy study, the
+        smaller taken) and the cap on an observed one.
+    safety : float
+        Aim at safety * tol, and leave a region alone once its outputs are within that.
+    first_ratio : float
+        The refinement of the output regions after level 0.
+    min_ratio, max_ratio : float
+        Bounds of a level's ratio there.
+    peak_radius : float
+        The disc (mm) around each depth-curve peak.
+    load_margin : float
+        The pulp band reaches this far (mm) beyond the 3 mm deflections (or each indenter's
+        footprint), and this deep.
+    weight_length : float
+        Decay length (mm) of the indicator's weight outside the regions.
+    floor : float
+        The smallest size (mm; default `default_floor`).
+    max_dofs : int
+        Stop before a level would exceed this many unknowns (estimated).
+    time_share : float
+        The share of tol that goes to the time error (`stepping.TIME_SHARE`; the mesh gets
+        tol (1 - time_share)); 0 leaves the scene's step control alone and refines the mesh
+        to the whole tol (the time error then neither controlled nor estimated).
+    max_time_runs : int
+        Runs of the finest mesh at most in the time check (the first is its level).
     """
 
     tol: float = 0.01
