@@ -264,11 +264,11 @@ def _sweep_or_check(args) -> int:
                                                          f"--param {args.param} --values {text}")])
     elif args.param and args.factors:
         from .scene import scene_record, toml_value
-        from .studies.parameters import _lookup, _scaled
+        from .studies.parameters import value_at, scaled_value
 
-        base = _lookup(scene_record(load_scene(args.scene, overrides)), args.param)
+        base = value_at(scene_record(load_scene(args.scene, overrides)), args.param)
         for factor in args.factors:
-            value = toml_value(_scaled(base, factor, args.param))
+            value = toml_value(scaled_value(base, factor, args.param))
             load_scene(args.scene, [*overrides, Override(f"{args.param}={value}",
                                                          f"--param {args.param} --factors "
                                                          f"{factor:g}")])

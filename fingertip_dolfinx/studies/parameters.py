@@ -37,7 +37,7 @@ def parameter_sweep(scene_name: str, key: str, out: Path, *, values: Sequence | 
     out = Path(out)
     base = scene_record(load_scene(scene_name, list(overrides)))
     settings = (list(values) if values is not None
-                else [_scaled(_lookup(base, key), f, key) for f in factors])
+                else [scaled_value(value_at(base, key), f, key) for f in factors])
     labels = _labels(key.rsplit(".", 1)[-1], settings, factors)
     jobs = [(load_scene(scene_name, [*overrides, f"{key}={toml_value(v)}"]), out / label)
             for label, v in zip(labels, settings)]
@@ -66,7 +66,7 @@ def _labels(name: str, settings: list, factors) -> list[str]:
     return [f"{name}-{i}" for i in range(len(settings))]
 
 
-def _lookup(record: dict, key: str):
+def value_at(record: dict, key: str):
     """The value at `key` (dotted, list entries by index) in a scene record."""
     node = record
     for part in key.split("."):
@@ -78,7 +78,8 @@ def _lookup(record: dict, key: str):
     return node
 
 
-def _scaled(value, factor: float, key: str):
+def scaled_value(value, factor: float, key: str):
+    """`value` (a number or a list of numbers) times `factor`; `key` names it in errors."""
     if isinstance(value, bool) or not isinstance(value, int | float | list):
         raise InputError(f"--param {key}", f"{value!r} is not a number or a list of numbers: "
                          "it cannot be scaled.", "use --values instead of --factors.")
