@@ -264,7 +264,7 @@ def _sweep_or_check(args) -> int:
                                                          f"--param {args.param} --values {text}")])
     elif args.param and args.factors:
         from .scene import scene_record, toml_value
-        from .studies.parameters import value_at, scaled_value
+        from .studies.parameters import scaled_value, value_at
 
         base = value_at(scene_record(load_scene(args.scene, overrides)), args.param)
         for factor in args.factors:
