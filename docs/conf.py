@@ -61,6 +61,9 @@ autodoc_typehints = "description"
 autodoc_member_order = "bysource"
 napoleon_numpy_docstring = True
 napoleon_google_docstring = False
+# An "Attributes" section as fields of the class, so that a dataclass's fields (also listed by
+# :members:) are not described twice.
+napoleon_use_ivar = True
 
 html_theme = "furo"
 html_title = "fingertip-dolfinx"

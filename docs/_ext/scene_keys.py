@@ -151,6 +151,10 @@ API_GROUPS = {
 }
 
 
+def _inherits_from_the_package(cls: type) -> bool:
+    return any(base.__module__.startswith("fingertip_dolfinx") for base in cls.__mro__[1:])
+
+
 def render_api() -> str:
     import fingertip_dolfinx as ft
 
@@ -173,6 +177,8 @@ def render_api() -> str:
                 out.append(f".. {kind}:: fingertip_dolfinx.{module}.{name}")
                 if kind == "autoclass":
                     out.append("   :members:")
+                    if _inherits_from_the_package(obj):  # e.g. the state bookkeeping
+                        out.append("   :inherited-members:")
                 out.append("")
         out += ["```", ""]
     return "\n".join(out)
