@@ -24,8 +24,13 @@ def test_it_loads_with_a_valid_series():
     assert prony.tau[FAST:] == (2.123, 9.371)  # Wu 2004
     assert 0 < prony.g_inf < 1 and all(g > 0 for g in prony.g)
     assert np.all(np.diff(prony.relaxation(np.logspace(-6, 2, 400))) < 0)  # relaxes, monotone
-    for region in ("subcutaneous", "bone", "nail"):  # every other region is the paper's
+    for region in ("bone", "nail"):  # every other region is the paper's
         assert getattr(DAMPED, region) == getattr(WU2004, region)
+    sub, paper = DAMPED.subcutaneous, WU2004.subcutaneous  # the pulp: its solid's mu scaled
+    assert (sub.phi0, sub.permeability) == (paper.phi0, paper.permeability)
+    assert sub.solid.alpha == paper.solid.alpha and sub.solid.nu == paper.solid.nu
+    assert DAMPED.subcutaneous_prony.g == prony.g[:FAST]  # the pulp: the fast terms alone
+    assert DAMPED.subcutaneous_prony.tau == prony.tau[:FAST]
     assert DAMPED.densities() == WU2004.densities()
     assert DAMPED.skin.alpha == WU2004.skin.alpha and DAMPED.skin.nu == WU2004.skin.nu
     assert load_materials("damped-fingerpad", DAMPED.record()) == DAMPED  # the record reads back
@@ -48,6 +53,14 @@ def test_the_file_is_the_fit(repo_root, monkeypatch):
     assert DAMPED.skin_prony.tau == pytest.approx(tau, rel=1e-12)
     for mu, mu_p in zip(DAMPED.skin.mu, WU2004.skin.mu):
         assert mu == pytest.approx(SCALE * mu_p, rel=1e-5)  # printed to 6 digits
+    assert residual["loss_rel"] < 0.03 and residual["magnitude_rel"] < 0.03
+    # The pulp: the same fit without slow terms; its relaxed modulus is the paper's.
+    slow, _ = fit_damping.REGIONS["subcutaneous"]
+    g_pulp, residual, _ = fit_damping.fit(fit_damping.tomllib.loads(fit_damping.DATA.read_text()),
+                                          slow)
+    assert tuple(g_pulp) == DAMPED.subcutaneous_prony.g
+    for mu, mu_p in zip(DAMPED.subcutaneous.solid.mu, WU2004.subcutaneous.solid.mu):
+        assert mu == pytest.approx(mu_p / (1 - sum(g_pulp)), rel=1e-5)
     assert residual["loss_rel"] < 0.03 and residual["magnitude_rel"] < 0.03
 
 
