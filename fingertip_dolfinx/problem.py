@@ -280,10 +280,10 @@ class FingertipProblem:
     def state_arrays(self) -> dict[str, np.ndarray]:
         """The arrays that define the state, by their checkpoint names: u, u_n, p (if any),
         u_nm1 (if the pore law has a rate: biphasic, for BDF2), v_n and a_n (with inertia),
-        qlv_h{i} and qlv_S_e_n (if the
-        skin is viscoelastic), qlv_subcutaneous_h{i} and qlv_subcutaneous_S_e_n (if the
-        subcutaneous solid is: model.history_name). They are the live arrays: writing into them sets the state
-        (then scatter_forward the unknowns, mark_accepted)."""
+        qlv_h{i} and qlv_S_e_n (if the skin is viscoelastic), qlv_subcutaneous_h{i} and
+        qlv_subcutaneous_S_e_n (if the subcutaneous solid is: model.history_name). They are the
+        live arrays: writing into them sets the state (then scatter_forward the unknowns,
+        mark_accepted)."""
         arrays = {"u": self.u.x.array, "u_n": self.u_n.x.array}
         if self.p is not None:
             arrays["p"] = self.p.x.array
