@@ -7,8 +7,9 @@
   round-off. The two regions' internal variables have distinct checkpoint names.
 - Frequency route: a pulp series with one term g = 1/2 and τ = 1 ns relaxes within every time
   step and, at 2 Hz (ωτ ~ 1e-8), G*(ω) = 1/2 + O(ωτ): the fingertip's dynamic stiffness must
-  equal that of the same finger whose pulp moduli are halved and elastic. A route that ignored
-  the pulp's G*(ω) (taking its instantaneous tangent) would be stiffer by the pulp's share.
+  equal that of the same finger whose pulp moduli are halved and elastic, and so must the
+  transfer to the stress in the pulp (SiteTransfer: each QLV region's own G*(ω)). A route that
+  ignored the pulp's G*(ω) (its instantaneous tangent) would be stiffer by the pulp's share.
 """
 
 import numpy as np
@@ -82,7 +83,11 @@ def test_the_two_histories_have_their_own_checkpoint_names(two_cells):
     assert len(names) == 7 + 1 + 2 + 1  # the skin's 7 terms and S_e^n, the pulp's 2 and S_e^n
 
 
-def _stiffness_at_2hz(overrides: dict) -> complex:
+def _response_at_2hz(overrides: dict) -> tuple[complex, np.ndarray]:
+    """The coarse 1pt fingertip pressed 0.5 mm and held: its dynamic stiffness at 2 Hz and the
+    transfer to −σ22 − p at two points of the pulp under the bar (SiteTransfer)."""
+    from fingertip_dolfinx.frequency_response import SiteTransfer
+
     scene = load_scene("1pt", ["section.mesh.min_size=0.2", "section.mesh.max_size=1.0",
                                "section.mesh.bone_size=2.0"])
     tissues = load_materials("wu2004", overrides)
@@ -91,18 +96,25 @@ def _stiffness_at_2hz(overrides: dict) -> complex:
     press(problem, RampHold(0.5, 1.0, 1.0), "held", scene.steps)
     solver = HarmonicSolver(linearise(problem))
     try:
-        return solver.solve(2.0).stiffness
+        response = solver.solve(2.0)
+        points = np.array([[0.0, problem.y_touch + 2.0], [0.3, problem.y_touch + 2.5]])
+        stress = SiteTransfer(problem, points)(response)["compressive_stress"]
+        return response.stiffness, stress
     finally:
         solver.close()
 
 
 @pytest.mark.slow
-def test_the_pulps_complex_modulus_enters_the_stiffness():
+def test_the_pulps_complex_modulus_enters_the_frequency_route():
+    """Serial (SiteTransfer's values are on rank 0)."""
     mu = load_materials("wu2004").subcutaneous.solid.mu
-    damped = _stiffness_at_2hz({"subcutaneous": {"prony": {"g": [0.5], "tau": [1e-9]}}})
-    halved = _stiffness_at_2hz({"subcutaneous": {"mu": [0.5 * m for m in mu]}})
-    full = _stiffness_at_2hz({})
+    damped = _response_at_2hz({"subcutaneous": {"prony": {"g": [0.5], "tau": [1e-9]}}})
+    halved = _response_at_2hz({"subcutaneous": {"mu": [0.5 * m for m in mu]}})
+    full = _response_at_2hz({})
     # The pressed states agree to τ/Δt ~ 1e-8 and G*(2 Hz) = 1/2 to ωτ ~ 1e-8: the bound
-    # leaves room for Newton's converged iterates; the pulp's share of K is far larger.
-    assert abs(damped - halved) < 1e-5 * abs(halved)
-    assert abs(full - halved) > 1e-3 * abs(halved)
+    # leaves room for Newton's converged iterates; the pulp's share is far larger.
+    assert abs(damped[0] - halved[0]) < 1e-5 * abs(halved[0])
+    assert abs(full[0] - halved[0]) > 1e-3 * abs(halved[0])
+    # The stress in the pulp: its own G*(ω) (the skin's G*(2 Hz) − g∞ = 0.85 would differ).
+    np.testing.assert_allclose(damped[1], halved[1], rtol=1e-5)
+    assert np.all(np.abs(full[1] - halved[1]) > 1e-3 * np.abs(halved[1]))
