@@ -100,8 +100,11 @@ def test_a_coarse_1pt_ramp_and_hold_is_the_paper_s(shared_tmp_path):
     between the sets, 1.0 % of the held force at the default γ0 = 10 (measured), 0.10 % at
     γ0 = 100, used here. After 0.2 s of hold (20 τ_max) the fast terms are gone: the forces
     agree to 2e-3. At the ramp's end the fast terms act as a viscous stress mu' Σ g_f τ_f Ṡ_e:
-    the force exceeds the paper's, by less than E = SCALE Σ g_f τ_f Ḟ/F (the whole force in
-    the skin; measured 0.47 % against E = 1.5 %: the pulp takes most of the force)."""
+    the force exceeds the paper's by about E = SCALE Σ g_f τ_f Ḟ/F, the excess if the whole
+    force relaxes with the fast series, as it now does (skin and pulp carry the same fast terms;
+    measured 1.52 % against E = 1.47 %, and 0.47 % when only the skin had them), plus the
+    contact's difference between the sets (held: 0.1 % at γ0 = 100, bounded by the 2e-3
+    asserted for the held force)."""
     from fingertip_dolfinx.runner import run
     from fingertip_dolfinx.scene import load_scene
 
@@ -118,6 +121,6 @@ def test_a_coarse_1pt_ramp_and_hold_is_the_paper_s(shared_tmp_path):
     rate = (f[i] - f[i - 1]) / (paper.time[i] - paper.time[i - 1]) / f[i]
     prony = DAMPED.skin_prony
     bound = SCALE * sum(g * tau for g, tau in zip(prony.g[:FAST], prony.tau[:FAST])) * rate
-    assert 0 < damped.force[end["damped-fingerpad"]] / f[i] - 1 < bound
+    assert 0 < damped.force[end["damped-fingerpad"]] / f[i] - 1 < bound + 2e-3
     assert paper.time[-1] == pytest.approx(1.2) == damped.time[-1]
     assert damped.force[-1] == pytest.approx(f[-1], rel=2e-3)
