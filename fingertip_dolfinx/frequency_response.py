@@ -93,7 +93,7 @@ class SiteTransfer:
         scalar = fem.functionspace(msh, ("Discontinuous Lagrange", 1))
         ipoints = scalar.element.interpolation_points
         self.sed, self.e_min = fem.Function(scalar), fem.Function(scalar)
-        self._scalars, stress, material, self.prony = [], [], [], None
+        self._scalars, stress, material = [], [], []
         for name, law in problem.laws.regions.items():
             cells = problem.fmesh.cell_tags.find(problem.tags[name])
             if not law.rigid:
@@ -101,17 +101,19 @@ class SiteTransfer:
                     self._d(law.energy), ipoints)))
             sigma = accepted_stress(law, F) * F.T / ufl.det(F)
             stress.append((cells, self._d(sigma)))
-            if law.history is not None:
-                material.append((cells, F * self._d(law.history.S_e) * F.T / ufl.det(F)))
-                self.prony = law.history.prony
+            if law.history is not None:  # each QLV region: its own G*(ω)
+                material.append((law.history.prony, cells,
+                                 F * self._d(law.history.S_e) * F.T / ufl.det(F)))
         every = np.arange(msh.topology.index_map(2).size_local
                           + msh.topology.index_map(2).num_ghosts, dtype=np.int32)
         self._scalars.append((self.e_min, every, fem.Expression(
             self._d(principal_log_strains(F)[1]), ipoints)))
         degree = problem.options.quadrature_degree
         self.stress = QuadratureProjection(msh, stress, degree, "d_sigma")
-        self.material = (QuadratureProjection(msh, material, degree, "d_sigma_material")
-                         if material else None)
+        #: (Prony series, projection of its region's F DS_e[δu] Fᵀ/J) per QLV region.
+        self.material = [(prony, QuadratureProjection(msh, [(cells, expr)], degree,
+                                                      f"d_sigma_material{k}"))
+                         for k, (prony, cells, expr) in enumerate(material)]
         self.sampler = PointSampler(msh, points)
         self._pressure_sampling(problem, points)
 
@@ -133,9 +135,9 @@ class SiteTransfer:
         self.stress.update()
         values = {"sed": self.sampler(self.sed), "e_min": self.sampler(self.e_min),
                   "sigma22": self.sampler(self.stress.stress)}
-        if self.material is not None:
-            self.material.update()
-            values["material22"] = self.sampler(self.material.stress)
+        for k, (_, projection) in enumerate(self.material):
+            projection.update()
+            values[f"material22_{k}"] = self.sampler(projection.stress)
         if self.dp is not None:
             self.dp.x.array[:] = arrays[1]
             values["p"] = self.pressure(self.dp)
@@ -143,8 +145,8 @@ class SiteTransfer:
             return None
         out = {"sed": values["sed"][:, 0], "e_min": values["e_min"][:, 0],
                "sigma22": values["sigma22"][:, 3]}
-        out["material22"] = (values["material22"][:, 3] if "material22" in values
-                             else np.zeros_like(out["sed"]))
+        for k in range(len(self.material)):
+            out[f"material22_{k}"] = values[f"material22_{k}"][:, 3]
         out["p"] = (np.where(self.in_tissue, values["p"][:, 0], 0.0) if "p" in values
                     else np.zeros_like(out["sed"]))
         return out
@@ -156,9 +158,11 @@ class SiteTransfer:
         if r is None:
             return None
         c = {k: r[k] + 1j * i[k] for k in r}
-        extra = complex_modulus(self.prony, response.omega) - (
-            self.prony.g_inf if self.prony is not None else 1.0)
-        sigma22 = c["sigma22"] + extra * c["material22"] - c["p"]
+        sigma22 = c["sigma22"]
+        for k, (prony, _) in enumerate(self.material):  # (G*(ω) − g∞) F DS_e[δu] Fᵀ/J
+            sigma22 = sigma22 + (complex_modulus(prony, response.omega) - prony.g_inf) * c[
+                f"material22_{k}"]
+        sigma22 = sigma22 - c["p"]
         values = {"sed": c["sed"], "compressive_strain": c["e_min"],
                   "compressive_stress": sigma22}
         return {q: QUANTITIES[q][1] * values[q] for q in QUANTITIES}

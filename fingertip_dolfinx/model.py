@@ -7,7 +7,8 @@ and the options into one law per region, each a small object with
     stress          P, the first Piola–Kirchhoff stress at the current state, history included
     elastic_stress  P_e, the instantaneous elastic stress (Nitsche's traction estimate)
     energy          W, the region's own strain energy density (the SED output)
-    history         internal variables at quadrature points (the skin's QLV), or None
+    history         internal variables at quadrature points (a QLV region: the skin, and the
+                    subcutaneous solid if its set gives a Prony series), or None
 
 and the pore law of the subcutaneous tissue, the pressure part of the problem (problem.py):
 
@@ -223,12 +224,18 @@ class Viscoelastic:
         self.material = material
         S_e = second_piola_kirchhoff(material, state.F)
         self.history = QuasiLinearViscoelasticity(
-            S_e, prony, state.mesh, state.quadrature_degree, state.dt, cells=state.cells[region]
-        )
+            S_e, prony, state.mesh, state.quadrature_degree, state.dt, cells=state.cells[region],
+            name=history_name(region))
         self.elastic_stress = state.F * S_e
         self.stress = state.F * self.history.stress()
         self.energy = strain_energy_density(material, state.F)
         self.p_wave_modulus = small_strain_p_wave_modulus(material)
+
+
+def history_name(region: str) -> str:
+    """The prefix of a region's QLV internal variables (checkpoint names): "qlv" for the skin
+    (the name checkpoints have always used), "qlv_<region>" for any other region."""
+    return "qlv" if region == "skin" else f"qlv_{region}"
 
 
 class SmallStrain:
@@ -324,13 +331,14 @@ class Laws:
         return list(laws.values())
 
     def history_arrays(self) -> dict[str, np.ndarray]:
-        """The internal variables by their checkpoint names (qlv_h{i}, qlv_S_e_n)."""
+        """The internal variables by their checkpoint names: qlv_h{i}, qlv_S_e_n (the skin),
+        qlv_<region>_h{i}, qlv_<region>_S_e_n (any other region: model.history_name)."""
         arrays = {}
         for law in self.with_history():
             names = law.history.arrays()
-            if set(names) & set(arrays):
-                raise InputError("model", "two regions keep a QLV history: their checkpoint "
-                                 "names would clash.", "make one region viscoelastic.")
+            if set(names) & set(arrays):  # a guard: history_name gives each region its own
+                raise InputError("model", f"two QLV histories share the names {sorted(names)}.",
+                                 "give each viscoelastic region its own history_name.")
             arrays.update(names)
         return arrays
 
@@ -347,7 +355,7 @@ def _layered(tissues: Tissues, options: ModelOptions, state: State) -> Laws:
     return Laws(
         regions={
             "skin": _skin_law(tissues, options, state),
-            "subcutaneous": Elastic(tissues.subcutaneous.solid, state),
+            "subcutaneous": _subcutaneous_law(tissues, state),
             "bone": _solid_law(tissues.bone, state),
             "nail": _solid_law(tissues.nail, state),
         },
@@ -368,6 +376,15 @@ def _skin_law(tissues: Tissues, options: ModelOptions, state: State) -> Elastic 
     if options.skin_viscoelastic and tissues.skin_prony is not None:
         return Viscoelastic(tissues.skin, tissues.skin_prony, state, "skin")
     return Elastic(tissues.skin, state)
+
+
+def _subcutaneous_law(tissues: Tissues, state: State) -> Elastic | Viscoelastic:
+    """The subcutaneous solid's law: QLV on its hyperfoam stress if the set gives it a Prony
+    series (under every pore model: the pore pressure adds to the solid's stress)."""
+    if tissues.subcutaneous_prony is not None:
+        return Viscoelastic(tissues.subcutaneous.solid, tissues.subcutaneous_prony, state,
+                            "subcutaneous")
+    return Elastic(tissues.subcutaneous.solid, state)
 
 
 def _solid_law(material: LinearElastic | Rigid, state: State) -> Elastic | RigidRegion:

@@ -305,7 +305,8 @@ class FingertipProblem(SteppableState):
         return [law.history for law in self.laws.with_history()]
 
     def history_arrays(self) -> dict[str, np.ndarray]:
-        """qlv_h{i}, qlv_S_e_n if the skin is viscoelastic (`model.Laws.history_arrays`)."""
+        """qlv_h{i}, qlv_S_e_n if the skin is viscoelastic, qlv_subcutaneous_h{i},
+        qlv_subcutaneous_S_e_n if the subcutaneous solid is (`model.Laws.history_arrays`)."""
         return self.laws.history_arrays()
 
     def region_energies(self) -> dict[int, ufl.core.expr.Expr]:

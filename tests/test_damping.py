@@ -24,8 +24,13 @@ def test_it_loads_with_a_valid_series():
     assert prony.tau[FAST:] == (2.123, 9.371)  # Wu 2004
     assert 0 < prony.g_inf < 1 and all(g > 0 for g in prony.g)
     assert np.all(np.diff(prony.relaxation(np.logspace(-6, 2, 400))) < 0)  # relaxes, monotone
-    for region in ("subcutaneous", "bone", "nail"):  # every other region is the paper's
+    for region in ("bone", "nail"):  # every other region is the paper's
         assert getattr(DAMPED, region) == getattr(WU2004, region)
+    sub, paper = DAMPED.subcutaneous, WU2004.subcutaneous  # the pulp: its solid's mu scaled
+    assert (sub.phi0, sub.permeability) == (paper.phi0, paper.permeability)
+    assert sub.solid.alpha == paper.solid.alpha and sub.solid.nu == paper.solid.nu
+    assert DAMPED.subcutaneous_prony.g == prony.g[:FAST]  # the pulp: the fast terms alone
+    assert DAMPED.subcutaneous_prony.tau == prony.tau[:FAST]
     assert DAMPED.densities() == WU2004.densities()
     assert DAMPED.skin.alpha == WU2004.skin.alpha and DAMPED.skin.nu == WU2004.skin.nu
     assert load_materials("damped-fingerpad", DAMPED.record()) == DAMPED  # the record reads back
@@ -48,6 +53,14 @@ def test_the_file_is_the_fit(repo_root, monkeypatch):
     assert DAMPED.skin_prony.tau == pytest.approx(tau, rel=1e-12)
     for mu, mu_p in zip(DAMPED.skin.mu, WU2004.skin.mu):
         assert mu == pytest.approx(SCALE * mu_p, rel=1e-5)  # printed to 6 digits
+    assert residual["loss_rel"] < 0.03 and residual["magnitude_rel"] < 0.03
+    # The pulp: the same fit without slow terms; its relaxed modulus is the paper's.
+    slow, _ = fit_damping.REGIONS["subcutaneous"]
+    g_pulp, residual, _ = fit_damping.fit(fit_damping.tomllib.loads(fit_damping.DATA.read_text()),
+                                          slow)
+    assert tuple(g_pulp) == DAMPED.subcutaneous_prony.g
+    for mu, mu_p in zip(DAMPED.subcutaneous.solid.mu, WU2004.subcutaneous.solid.mu):
+        assert mu == pytest.approx(mu_p / (1 - sum(g_pulp)), rel=1e-5)
     assert residual["loss_rel"] < 0.03 and residual["magnitude_rel"] < 0.03
 
 
@@ -87,8 +100,11 @@ def test_a_coarse_1pt_ramp_and_hold_is_the_paper_s(shared_tmp_path):
     between the sets, 1.0 % of the held force at the default γ0 = 10 (measured), 0.10 % at
     γ0 = 100, used here. After 0.2 s of hold (20 τ_max) the fast terms are gone: the forces
     agree to 2e-3. At the ramp's end the fast terms act as a viscous stress mu' Σ g_f τ_f Ṡ_e:
-    the force exceeds the paper's, by less than E = SCALE Σ g_f τ_f Ḟ/F (the whole force in
-    the skin; measured 0.47 % against E = 1.5 %: the pulp takes most of the force)."""
+    the force exceeds the paper's by about E = SCALE Σ g_f τ_f Ḟ/F, the excess if the whole
+    force relaxes with the fast series, as it now does (skin and pulp carry the same fast terms;
+    measured 1.52 % against E = 1.47 %, and 0.47 % when only the skin had them), plus the
+    contact's difference between the sets (held: 0.1 % at γ0 = 100, bounded by the 2e-3
+    asserted for the held force)."""
     from fingertip_dolfinx.runner import run
     from fingertip_dolfinx.scene import load_scene
 
@@ -105,6 +121,6 @@ def test_a_coarse_1pt_ramp_and_hold_is_the_paper_s(shared_tmp_path):
     rate = (f[i] - f[i - 1]) / (paper.time[i] - paper.time[i - 1]) / f[i]
     prony = DAMPED.skin_prony
     bound = SCALE * sum(g * tau for g, tau in zip(prony.g[:FAST], prony.tau[:FAST])) * rate
-    assert 0 < damped.force[end["damped-fingerpad"]] / f[i] - 1 < bound
+    assert 0 < damped.force[end["damped-fingerpad"]] / f[i] - 1 < bound + 2e-3
     assert paper.time[-1] == pytest.approx(1.2) == damped.time[-1]
     assert damped.force[-1] == pytest.approx(f[-1], rel=2e-3)

@@ -4,6 +4,7 @@ A materials file has a table per region, each naming its law and giving its para
 
     [skin]               model = "hyperfoam"; mu, alpha, nu         (+ optional [skin.prony])
     [subcutaneous]       model = "biphasic";  mu, alpha, nu, phi0   (+ [subcutaneous.permeability])
+                                 (+ optional [subcutaneous.prony]: the solid's QLV)
     [subcutaneous.permeability]  law = "holmes-mow" (k0, kappa, M) | "constant" (k0)
     [bone], [nail]       model = "linear-elastic" (E, nu) | "rigid"
 
@@ -70,6 +71,8 @@ class Tissues:
         The distal phalanx and the nail.
     name : str, optional
         The set's name (its file name).
+    subcutaneous_prony : Prony or None, optional
+        The subcutaneous solid's relaxation (QLV on its hyperfoam stress); None: elastic solid.
     density : mapping of str to float, optional
         Mass density (N·s²/mm⁴; 1000 kg/m³ is 1e-9) by region; only dynamic runs read it.
     """
@@ -80,6 +83,8 @@ class Tissues:
     bone: LinearElastic | Rigid
     nail: LinearElastic | Rigid
     name: str = "custom"
+    #: The subcutaneous solid's QLV relaxation (None: its hyperfoam stress is elastic).
+    subcutaneous_prony: Prony | None = None
     #: Mass density of each region that has one (N·s²/mm⁴), by region name.
     density: Mapping[str, float] = dataclasses.field(default_factory=dict, hash=False)
 
@@ -103,7 +108,7 @@ class Tissues:
         sub = self.subcutaneous
         skin = {"model": "hyperfoam", **_hyperfoam_record(self.skin)}
         if self.skin_prony is not None:
-            skin["prony"] = {"g": list(self.skin_prony.g), "tau": list(self.skin_prony.tau)}
+            skin["prony"] = _prony_record(self.skin_prony)
         record = {
             "name": self.name,
             "skin": skin,
@@ -112,6 +117,8 @@ class Tissues:
             "bone": _solid_record(self.bone),
             "nail": _solid_record(self.nail),
         }
+        if self.subcutaneous_prony is not None:
+            record["subcutaneous"]["prony"] = _prony_record(self.subcutaneous_prony)
         for region, rho in self.density.items():
             record[region]["density"] = rho
         return record
@@ -155,6 +162,8 @@ def tissues_from_dict(data: Mapping, where: str = "materials") -> Tissues:
         skin=_skin(data["skin"], f"{where}: skin"),
         skin_prony=_prony(data["skin"].get("prony"), f"{where}: skin.prony"),
         subcutaneous=_biphasic(data["subcutaneous"], f"{where}: subcutaneous"),
+        subcutaneous_prony=_prony(data["subcutaneous"].get("prony"),
+                                  f"{where}: subcutaneous.prony"),
         bone=_solid(data["bone"], f"{where}: bone"),
         nail=_solid(data["nail"], f"{where}: nail"),
         name=str(data.get("name", "custom")),
@@ -218,11 +227,15 @@ def _prony(data: Mapping | None, where: str) -> Prony | None:
     return Prony.from_dict(data, where=where)
 
 
+def _prony_record(prony: Prony) -> dict:
+    return {"g": list(prony.g), "tau": list(prony.tau)}
+
+
 def _biphasic(data: Mapping, where: str) -> Biphasic:
     _model(data, where, ("biphasic",))
-    check_keys(where, data, ("model", "mu", "alpha", "nu", "phi0", "permeability"),
+    check_keys(where, data, ("model", "mu", "alpha", "nu", "phi0", "permeability", "prony"),
                required=("mu", "alpha", "nu", "phi0", "permeability"))
-    solid = _hyperfoam(data, where, extra=("model", "phi0", "permeability"))
+    solid = _hyperfoam(data, where, extra=("model", "phi0", "permeability", "prony"))
     permeability = _permeability(data["permeability"], data["phi0"], f"{where}.permeability")
     return Biphasic(solid, permeability, phi0=data["phi0"], where=where)
 

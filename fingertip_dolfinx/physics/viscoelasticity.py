@@ -33,11 +33,12 @@ class QuasiLinearViscoelasticity:
     stress is meaningful only where it is integrated.
 
     Only `advance()` changes the history, after a step has converged: a rejected (cut) step
-    needs no restore, just re-solve with a smaller dt.
+    needs no restore, just re-solve with a smaller dt. name: the prefix of the internal
+    variables' names ({name}_h{i}, {name}_S_e_n: their checkpoint names, one per region).
     """
 
     def __init__(self, S_e, prony: Prony, mesh, quadrature_degree: int, dt,
-                 cells: np.ndarray | None = None):
+                 cells: np.ndarray | None = None, name: str = "qlv"):
         if not isinstance(prony, Prony):
             raise InputError("viscoelasticity", f"expected a Prony series, got {prony!r}.")
         if int(quadrature_degree) < 0:
@@ -52,8 +53,8 @@ class QuasiLinearViscoelasticity:
         element = basix.ufl.quadrature_element(mesh.basix_cell(), value_shape=shape,
                                                degree=self.degree)
         self.space = fem.functionspace(mesh, element)
-        self.h = [fem.Function(self.space, name=f"qlv_h{i}") for i in range(len(prony.g))]
-        self.S_e_n = fem.Function(self.space, name="qlv_S_e_n")
+        self.h = [fem.Function(self.space, name=f"{name}_h{i}") for i in range(len(prony.g))]
+        self.S_e_n = fem.Function(self.space, name=f"{name}_S_e_n")
 
         self.S_e = S_e
         self.h_new = []
@@ -92,7 +93,8 @@ class QuasiLinearViscoelasticity:
             f.x.array[self._index] = values[:, :, k, :].reshape(len(self.cells), -1)
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """The live arrays of the internal variables, by checkpoint name (qlv_h{i}, qlv_S_e_n)."""
+        """The live arrays of the internal variables, by checkpoint name ({name}_h{i},
+        {name}_S_e_n)."""
         return {f.name: f.x.array for f in (*self.h, self.S_e_n)}
 
     def reset(self) -> None:
