@@ -284,3 +284,39 @@ def plot_spacing_profiles(runs: dict[float, dict], path: Path, time_s: float, de
     fig.suptitle(f"{title} at depth {depth_mm:g} mm, t = {time_s:g} s")
     fig.tight_layout(rect=(0, 0, 0.88, 1))
     fig.savefig(path, dpi=150)
+
+
+#: The population picture's marker of each afferent class.
+CLASS_MARKERS = {"SA1": "o", "RA": "s", "PC": "D"}
+
+
+def plot_population(afferents: dict, outer, path: Path, title: str = "") -> None:
+    """The afferents of a run at their sites on the section (reference positions), coloured
+    by their mean firing rate over the run, one marker per class, with the palmar outer
+    surface for orientation (afferents.csv's columns; `outer`: the section's outer ellipse)."""
+    from matplotlib.colors import Normalize
+
+    fig = Figure(figsize=(8.0, 4.2))
+    ax = fig.subplots()
+    x, y, rate = afferents["x_mm"], afferents["y_mm"], afferents["mean_rate_per_s"]
+    half = float(np.max(np.abs(x))) + 1.0
+    edge = min(half / outer.a, 1.0)  # the palmar arc: x = a cos u, u in (−π, 0)
+    u = np.linspace(-np.arccos(-edge), -np.arccos(edge), 200)
+    surface = outer.point(u)
+    ax.plot(surface[:, 0], surface[:, 1], color="0.3", lw=1.0, label="outer surface")
+    norm = Normalize(0.0, max(float(np.max(rate, initial=0.0)), 1.0))
+    for name, marker in CLASS_MARKERS.items():
+        rows = afferents["class"] == name
+        if rows.any():
+            points = ax.scatter(x[rows], y[rows], c=rate[rows], cmap="viridis", norm=norm,
+                                marker=marker, s=36, edgecolors="k", linewidths=0.5,
+                                label=f"{name} ({rows.sum()})")
+    fig.colorbar(points, ax=ax, label="mean rate over the run (spikes/s)", shrink=0.7)
+    ax.set_ylim(min(float(surface[:, 1].min()), float(y.min())) - 0.4, float(y.max()) + 0.6)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    ax.set_title(title)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=4, fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=150)

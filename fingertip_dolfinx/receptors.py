@@ -644,6 +644,106 @@ def afferent_responses(result, population: ReceptorPopulation | str | None = Non
         mean_rate=np.array([len(s) / duration for s in spikes]), sed_rate=sed_rate)
 
 
+# --- spike trains and rate histories of a run ----------------------------------------------
+
+#: The columns of spikes.csv (one row per spike) and afferents.csv (one row per afferent) of a
+#: run with receptors; `afferent` numbers the afferents of the run (0, 1, ...), `site` is the
+#: index of the site along its class's row (receptors.csv's `index`); `fit`: the row of the
+#: class's fits in the parameter file a saal2017 afferent uses, −1 for a model without fits.
+SPIKE_COLUMNS = ("class", "afferent", "site", "time_s")
+AFFERENT_COLUMNS = ("class", "afferent", "site", "model", "fit", "x_mm", "y_mm", "depth_mm",
+                    "spikes", "mean_rate_per_s")
+#: The rate histories' bins (rates.npz): 10 ms wide, wider on long runs (at most 1000 bins).
+RATE_BIN_S = 0.01
+MAX_RATE_BINS = 1000
+
+
+def afferent_fit(c: ReceptorClass, index: int) -> int:
+    """The fit (row of the class in the parameter file) the afferent at site `index` uses:
+    the class's fits in turn along the row, as `saal_spikes`; −1 for a model without fits."""
+    if c.model != "saal2017":
+        return -1
+    return c.saal.fits[index % len(c.saal.fits)]
+
+
+def rate_bins(end: float, width: float = RATE_BIN_S, max_bins: int = MAX_RATE_BINS) -> np.ndarray:
+    """Bin edges from 0 to `end` (s): `width` apart (wider if there would be more than
+    `max_bins`), the last bin ending at `end` (shorter when `end` is not a whole number of
+    widths)."""
+    end = positive("rate bins: end", end, "s")
+    width = max(width, end / max_bins)
+    n = max(1, math.ceil(end / width - 1e-9))
+    return np.append(np.arange(n) * width, end)
+
+
+def rate_histories(responses: AfferentResponses, edges: np.ndarray | None = None) -> dict:
+    """Per afferent (columns) the spikes counted in each time bin (rows; np.histogram's bins:
+    [e_k, e_k+1), the last one closed) and the rate = count / bin width (spikes/s), as the
+    arrays of rates.npz: `edges_s`, `counts`, `rate_per_s`, `afferent`, `class`, `site`."""
+    edges = rate_bins(responses.time[-1]) if edges is None else np.asarray(edges, dtype=float)
+    counts = np.zeros((len(edges) - 1, len(responses.spikes)), dtype=np.int64)
+    for j, train in enumerate(responses.spikes):
+        counts[:, j] = np.histogram(train, bins=edges)[0]
+    return {"edges_s": edges, "counts": counts, "rate_per_s": counts / np.diff(edges)[:, None],
+            "afferent": np.arange(len(responses.spikes)), "class": responses.cls,
+            "site": responses.index}
+
+
+def spike_tables(responses: AfferentResponses, population: ReceptorPopulation,
+                 positions: Mapping) -> tuple[list[dict], list[dict]]:
+    """(rows of afferents.csv, rows of spikes.csv) of a run's responses. `positions`: the
+    reference position (x, y[, z]) of each site by (class, index)."""
+    afferents, spikes = [], []
+    duration = responses.time[-1] - responses.time[0]
+    for j, (name, index) in enumerate(zip(responses.cls, responses.index)):
+        c, index = population[name], int(index)
+        position = positions[(name, index)]
+        afferents.append({
+            "class": name, "afferent": j, "site": index, "model": c.model,
+            "fit": afferent_fit(c, index), **dict(zip(("x_mm", "y_mm", "z_mm"), position)),
+            "depth_mm": responses.depth[j], "spikes": len(responses.spikes[j]),
+            "mean_rate_per_s": len(responses.spikes[j]) / duration})
+        spikes += [{"class": name, "afferent": j, "site": index, "time_s": float(t)}
+                   for t in responses.spikes[j]]
+    return afferents, spikes
+
+
+def write_spike_files(out: Path, population: ReceptorPopulation, sites: Sites) -> dict | None:
+    """spikes.csv, afferents.csv and rates.npz of the run in `out` (rank 0), each written
+    whole, from its receptors.csv: every afferent's spike train over the run's steps. Returns
+    afferents.csv's columns (for the population picture); None if no step was sampled."""
+    from .outputs import save_npz
+    from .result import Result
+
+    result = Result(out)
+    if not (Path(out) / "receptors.csv").exists() or not result.receptors():
+        return None
+    responses = afferent_responses(result, population)
+    positions = {(c, int(i)): tuple(p) for c, i, p in zip(sites.cls, sites.index, sites.points)}
+    afferents, spikes = spike_tables(responses, population, positions)
+    columns = AFFERENT_COLUMNS if sites.points.shape[1] == 2 else (
+        *AFFERENT_COLUMNS[:7], "z_mm", *AFFERENT_COLUMNS[7:])
+    _write_rows(Path(out) / "afferents.csv", columns, afferents)
+    _write_rows(Path(out) / "spikes.csv", SPIKE_COLUMNS, spikes)
+    save_npz(Path(out) / "rates.npz", **rate_histories(responses))
+    return {k: np.array([row[k] for row in afferents]) for k in columns}
+
+
+def _write_rows(path: Path, columns, rows: list[dict]) -> None:
+    """A whole CSV file; numbers to full precision (spike times read back exactly)."""
+    import csv
+
+    from .outputs import whole
+
+    def cell(v):
+        return repr(float(v)) if isinstance(v, float | np.floating) else v
+
+    with whole(path) as tmp, tmp.open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=columns)
+        writer.writeheader()
+        writer.writerows({k: cell(row[k]) for k in columns} for row in rows)
+
+
 def saal_spikes(c: ReceptorClass, index: int, t, s) -> np.ndarray:
     """Spike times (s) of site `index` of a class using the Saal et al. 2017 fits: the site's
     fit is the class's fits in turn along the row (fits[index mod n], a deterministic mix as

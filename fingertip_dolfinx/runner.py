@@ -7,7 +7,9 @@ deflection, the depth profiles, the fields as arrays (`fields_t<t>s.npz`, 2D and
 `Result.fields` and `Result.to_pyvista` read) and, in 2D, their pictures.
 At the end (or at a failure, or an interruption): summary.json and the figures. `run`
 returns a `Result` (result.py) that holds all of it as arrays. With `output.receptors`, every
-step also adds the receptor sites' rows to receptors.csv.
+step also adds the receptor sites' rows to receptors.csv, and the end (or a failure, or an
+interruption) writes every afferent's spike train (spikes.csv, afferents.csv, rates.npz) and
+the population picture (population.png).
 
 A resume is checked against the scene record kept with the checkpoint (`check_resume`).
 SIGINT (Ctrl-C) and SIGTERM stop a run at the next step boundary, all ranks at the same one:
@@ -34,6 +36,7 @@ from .figures import (
     plot_depth_profiles,
     plot_force_history,
     plot_line_force,
+    plot_population,
     plot_surface_profiles,
 )
 from .geometry3d import Fingertip3D
@@ -62,7 +65,7 @@ from .outputs import (
 from .pictures import field_pictures
 from .post import DerivedFields, FieldArrays, Profiles, Profiles3D
 from .problem import FingertipProblem
-from .receptors import ReceptorRecorder, load_receptors
+from .receptors import ReceptorRecorder, load_receptors, write_spike_files
 from .result import Result
 from .scene import Scene, scene_record
 from .stepping.stepper import TimeStepper
@@ -395,6 +398,8 @@ class Run:
         self.comm.barrier()
         summary = None
         if self.comm.rank == 0:
+            afferents = None if self.receptors is None else write_spike_files(
+                self.out, self.receptors.population, self.receptors.sites)
             summary = run_summary(self.out, scene_record(self.scene), self.fm.report, self.dofs,
                                   self.comm.size, converged=converged, failure=failure,
                                   wall=wall, output_times=self.scene.output_times,
@@ -402,6 +407,9 @@ class Run:
             if self.scene.outputs.pictures:
                 with whole_files(self.out, "figures", MPI.COMM_SELF) as folder:
                     _figures(self.out, self.scene.title, folder)
+                    if afferents is not None:
+                        plot_population(afferents, self.scene.section.outer,
+                                        folder / "population.png", self.scene.title)
                     if self.three_d:
                         _figures_3d(self.out, self.scene.title, folder)
         summary = self.comm.bcast(summary, root=0)
