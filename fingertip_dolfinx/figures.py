@@ -296,6 +296,8 @@ def plot_population(afferents: dict, outer, path: Path, title: str = "") -> None
     surface for orientation (afferents.csv's columns; `outer`: the section's outer ellipse)."""
     from matplotlib.colors import Normalize
 
+    if "z_mm" in afferents:
+        return plot_population_3d(afferents, path, title)
     fig = Figure(figsize=(8.0, 4.2))
     ax = fig.subplots()
     x, y, rate = afferents["x_mm"], afferents["y_mm"], afferents["mean_rate_per_s"]
@@ -319,4 +321,32 @@ def plot_population(afferents: dict, outer, path: Path, title: str = "") -> None
     ax.set_title(title)
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=4, fontsize=8)
     fig.tight_layout()
+    fig.savefig(path, dpi=150)
+
+
+def plot_population_3d(afferents: dict, path: Path, title: str = "") -> None:
+    """A 3D run's afferents seen from the palm (their sites projected on the x–z plane: across
+    and along the finger), one panel per class, coloured by mean firing rate over the run
+    (one colour scale); afferents.csv's columns."""
+    from matplotlib.colors import Normalize
+
+    names = [n for n in CLASS_MARKERS if np.any(afferents["class"] == n)]
+    fig = Figure(figsize=(3.2 * len(names) + 1.2, 5.2))
+    axes = np.atleast_1d(fig.subplots(1, len(names), sharex=True, sharey=True))
+    rate = afferents["mean_rate_per_s"]
+    norm = Normalize(0.0, max(float(np.max(rate, initial=0.0)), 1.0))
+    for ax, name in zip(axes, names):
+        rows = afferents["class"] == name
+        order = np.argsort(rate[rows])  # the firing ones on top
+        points = ax.scatter(afferents["x_mm"][rows][order], afferents["z_mm"][rows][order],
+                            c=rate[rows][order], cmap="viridis", norm=norm, s=10,
+                            marker=CLASS_MARKERS[name], edgecolors="none")
+        ax.set_title(f"{name}: {rows.sum()} afferents, {int(np.sum(rate[rows] > 0))} firing",
+                     fontsize=9)
+        ax.set_xlabel("x (mm), across the finger")
+        ax.set_aspect("equal")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("z (mm), along the finger (tip at the top)")
+    fig.colorbar(points, ax=list(axes), label="mean rate over the run (spikes/s)", shrink=0.8)
+    fig.suptitle(f"{title}: afferents seen from the palm", fontsize=10)
     fig.savefig(path, dpi=150)

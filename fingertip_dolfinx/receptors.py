@@ -99,6 +99,9 @@ CLASSES = ("SA1", "RA", "PC")
 #: The columns of receptors.csv (one row per receptor per accepted step).
 RECEPTOR_COLUMNS = ("time_s", "class", "index", "x_mm", "depth_mm", "sed_MPa", "e_min",
                     "sigma22_MPa", "p_MPa")
+#: A 3D run's: the site's own reference position (x_mm, y_mm, z_mm; x < 0 on the mirrored half
+#: of a half model) instead of the surface point's x.
+RECEPTOR_COLUMNS_3D = (*RECEPTOR_COLUMNS[:4], "y_mm", "z_mm", *RECEPTOR_COLUMNS[4:])
 WEIGHTS = ("s_pos", "s_neg", "ds_pos", "ds_neg", "dds_pos", "dds_neg")
 HOLDS = ("linear", "constant")
 DEFAULT_SET = "default"
@@ -240,6 +243,9 @@ class Sites:
     x: np.ndarray
     depth: np.ndarray
     points: np.ndarray
+    #: Where the half model is sampled for each site (3D: a site on the mirrored half, x < 0,
+    #: reads its mirror image (−x, y, z)); None: at `points`.
+    sample_points: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.cls)
@@ -313,6 +319,83 @@ class ReceptorPopulation:
         return {"name": self.name, "description": self.description,
                 "sites": {"half_width": self.half_width},
                 **{c.name: table(c) for c in self.classes}}
+
+
+#: The seed of the 3D populations' random site placement (TouchSim places afferents uniformly at
+#: random over a region, `Surface.sample_uniform`): fixed, so a run's population is the same on
+#: every run, rank count and resume.
+SURFACE_SEED = 2017
+
+
+def pulp_triangles(fm) -> tuple[np.ndarray, np.ndarray]:
+    """(corners (n, 3, 3), unit outward normals (n, 3)) of every pulp-surface facet of a 3D
+    mesh, gathered on every rank (each facet once: its owner's). The normal points away from
+    the facet's cell. InputError if the mesh has no pulp surface."""
+    from dolfinx.mesh import entities_to_geometry
+
+    msh, fdim = fm.mesh, 2
+    tag = fm.names.get("pulp_surface")
+    facets = fm.facet_tags.find(tag) if tag is not None else np.zeros(0, dtype=np.int32)
+    facets = facets[facets < msh.topology.index_map(fdim).size_local]
+    msh.topology.create_connectivity(fdim, 3)
+    x = msh.geometry.x
+    corners = x[entities_to_geometry(msh, fdim, facets)][:, :3, :]
+    f2c = msh.topology.connectivity(fdim, 3)
+    cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
+    centroid = x[entities_to_geometry(msh, 3, cells)].mean(axis=1) if len(cells) else corners[:, 0]
+    normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    outward = np.sign(np.einsum("ij,ij->i", normal, corners[:, 0] - centroid))
+    corners = np.concatenate(msh.comm.allgather(corners)).reshape(-1, 3, 3)
+    normal = np.concatenate(msh.comm.allgather(normal * outward[:, None])).reshape(-1, 3)
+    if not len(corners):
+        raise InputError("3D receptors: the mesh", "has no pulp surface (no facet tagged "
+                         "pulp_surface): there is nowhere to place the afferents.",
+                         "use a 3D section whose mesh tags its palmar skin (male-index-3d).")
+    return corners, normal
+
+
+def triangle_areas(corners: np.ndarray) -> np.ndarray:
+    return 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0],
+                                         corners[:, 2] - corners[:, 0]), axis=1)
+
+
+def surface_sites(population: ReceptorPopulation, fm, half: bool,
+                  seed: int = SURFACE_SEED) -> Sites:
+    """The sites of a 3D population over the pulp surface of the whole finger: per class
+    round(density × pulp area) sites, uniformly at random over the (meshed) surface, each at
+    the class depth below it along the facet's inward normal.
+
+    A half model (`half`: its mesh holds x >= 0, the plane x = 0 a mirror) stands for the whole
+    finger: the pulp area is twice the meshed one, each site lies on the meshed half or, with
+    probability 1/2, on the mirrored half (x → −x); a site on the mirrored half is sampled at
+    its mirror image (`Sites.sample_points`), exact for the scene the half model solves (one
+    symmetric about x = 0)."""
+    corners, normal = pulp_triangles(fm)
+    area = triangle_areas(corners)
+    total = (2.0 if half else 1.0) * area.sum() / 100.0  # cm²
+    rng = np.random.default_rng(seed)
+    cls, index, depth, points, sampled = [], [], [], [], []
+    for c in population.classes:
+        n = round(c.density * total)
+        which = rng.choice(len(area), size=n, p=area / area.sum())
+        r1, r2 = np.sqrt(rng.random(n)), rng.random(n)  # uniform on a triangle
+        tri = corners[which]
+        on = ((1 - r1)[:, None] * tri[:, 0] + (r1 * (1 - r2))[:, None] * tri[:, 1]
+              + (r1 * r2)[:, None] * tri[:, 2])
+        site = on - c.depth * normal[which]
+        shown = site.copy()
+        if half:
+            shown[rng.random(n) < 0.5, 0] *= -1.0
+            site[:, 0] = np.abs(site[:, 0])  # a normal at x = 0 may tip a site by round-off
+        points.append(shown)
+        sampled.append(site)
+        cls += [c.name] * n
+        index.append(np.arange(n))
+        depth.append(np.full(n, c.depth))
+    points = np.concatenate(points)
+    return Sites(np.array(cls), np.concatenate(index), points[:, 0], np.concatenate(depth),
+                 points, np.concatenate(sampled))
 
 
 def row_abscissae(outer, spacing: float, half_width: float) -> np.ndarray:
@@ -627,10 +710,10 @@ def afferent_responses(result, population: ReceptorPopulation | str | None = Non
         x[j], depth[j] = table["x_mm"][r], table["depth_mm"][r]
     spikes, rate = [], np.zeros((n_t, n_r))
     sed_rate = np.full((n_t, n_r), np.nan)
-    for j, (name, index) in enumerate(keys):
+    fitted = _fitted_spikes(population, keys, times, np.nan_to_num(stimulus))
+    for j, (name, _) in enumerate(keys):
         c = population[name]
-        train = (saal_spikes(c, index, times, np.nan_to_num(stimulus[:, j]))
-                 if c.model == "saal2017" else
+        train = (fitted[j] if c.model == "saal2017" else
                  c.lif.spikes(times, np.nan_to_num(stimulus[:, j]), hold))
         spikes.append(train)
         counts = np.histogram(train, bins=times)[0] if len(train) else np.zeros(n_t - 1)
@@ -744,18 +827,40 @@ def _write_rows(path: Path, columns, rows: list[dict]) -> None:
         writer.writerows({k: cell(row[k]) for k in columns} for row in rows)
 
 
-def saal_spikes(c: ReceptorClass, index: int, t, s) -> np.ndarray:
+def _fitted_spikes(population: ReceptorPopulation, keys, t, stimulus) -> dict[int, np.ndarray]:
+    """`saal_spikes` of every column j of `stimulus` whose class uses the fitted afferents,
+    one vectorised call per class (3D populations have ~1000 sites): {j: spike times}."""
+    out = {}
+    for c in population.classes:
+        if c.model != "saal2017":
+            continue
+        columns = [j for j, (name, _) in enumerate(keys) if name == c.name]
+        if columns:
+            trains = saal_spikes(c, [keys[j][1] for j in columns], t, stimulus[:, columns].T)
+            out |= dict(zip(columns, trains))
+    return out
+
+
+def saal_spikes(c: ReceptorClass, index, t, s):
     """Spike times (s) of site `index` of a class using the Saal et al. 2017 fits: the site's
     fit is the class's fits in turn along the row (fits[index mod n], a deterministic mix as
     TouchSim's random choice per afferent); the samples s at times t (from rest) are
     interpolated linearly onto the model's 5 kHz grid (the run's steps carry no faster
-    content) and mapped to its inputs (SaalModel)."""
+    content) and mapped to its inputs (SaalModel). Several sites at once: `index` a list and
+    s (n, T), a list of spike times back (one vectorised simulation)."""
+    if np.ndim(index) == 0:
+        return _saal_spikes(c, [int(index)], t, np.reshape(s, (1, -1)))[0]
+    return _saal_spikes(c, list(index), t, np.asarray(s))
+
+
+def _saal_spikes(c: ReceptorClass, index: list[int], t, s) -> list[np.ndarray]:
+    """`saal_spikes` of the sites `index` (a list), samples s (n, T)."""
     aff = c.saal.afferents(c.name)
-    aff = aff.take([index % len(aff)])
+    aff = aff.take([i % len(aff) for i in index])
     grid = np.arange(int(math.floor(t[-1] * aff.fs)) + 1) / aff.fs
-    static, dynamic = site_inputs(np.interp(grid, t, s), aff.fs, c.saal.input_scale,
-                                  c.saal.kappa(c.name))
-    return spike_times(aff, static, dynamic)[0]
+    sampled = np.array([np.interp(grid, t, row) for row in s])
+    static, dynamic = site_inputs(sampled, aff.fs, c.saal.input_scale, c.saal.kappa(c.name))
+    return spike_times(aff, static, dynamic)
 
 
 def threshold_amplitude(lif: LIF, frequency: float, *, offset: float = 0.0, cycles: int = 4,
@@ -830,24 +935,27 @@ class ReceptorRecorder:
     rank calls `write`.
 
     `problem`: the run's FingertipProblem, `derived`: its post.DerivedFields, `outer`: the
-    section's outer ellipse; `resume_after`: keep the file's rows up to this time (--resume).
+    section's outer ellipse; `resume_after`: keep the file's rows up to this time (--resume);
+    `sites`: the sites (3D: `surface_sites`), else the section's rows on `outer`.
     """
 
     def __init__(self, problem, derived, population: ReceptorPopulation, outer, out: Path,
-                 comm, resume_after: float | None = None):
+                 comm, resume_after: float | None = None, sites: Sites | None = None):
 
         from .outputs import CsvLog
         from .post import CauchyStress, PointSampler
 
         self.problem, self.derived, self.population = problem, derived, population
-        self.sites = population.sites(outer)
-        self.sampler = PointSampler(problem.mesh, self.sites.points)
-        self.pressure, self.in_tissue = pressure_sampling(problem, self.sampler,
-                                                          self.sites.points)
+        self.sites = population.sites(outer) if sites is None else sites
+        self.gdim = problem.mesh.geometry.dim
+        at = self.sites.points if self.sites.sample_points is None else self.sites.sample_points
+        self.sampler = PointSampler(problem.mesh, at)
+        self.pressure, self.in_tissue = pressure_sampling(problem, self.sampler, at)
         laws = {problem.tags[name]: law for name, law in problem.laws.regions.items()}
         self.stress = CauchyStress(problem.u, problem.fmesh.cell_tags, laws,
                                    problem.options.quadrature_degree)
-        self.log = CsvLog(Path(out) / "receptors.csv", RECEPTOR_COLUMNS, comm, resume_after)
+        columns = RECEPTOR_COLUMNS if self.gdim == 2 else RECEPTOR_COLUMNS_3D
+        self.log = CsvLog(Path(out) / "receptors.csv", columns, comm, resume_after)
         self.comm = comm
         if comm.rank == 0:  # the set the run sampled, for afferent_responses
             (Path(out) / "receptors.json").write_text(
@@ -870,11 +978,15 @@ class ReceptorRecorder:
             return None
         p = (np.full(len(self.sites), np.nan) if p is None
              else np.where(self.in_tissue, p[:, 0], np.nan))
-        total = sigma[:, 3] - np.nan_to_num(p)  # σ22 − p where there is a pore pressure
+        d = self.gdim  # σ row by row: σ22 is component d + 1 (principal: max, min)
+        total = sigma[:, d + 1] - np.nan_to_num(p)  # σ22 − p where there is a pore pressure
         s = self.sites
+        where = [{} for _ in range(len(s))] if d == 2 else [
+            {"y_mm": y, "z_mm": z} for y, z in s.points[:, 1:]]
         return [{"time_s": t, "class": s.cls[i], "index": int(s.index[i]), "x_mm": s.x[i],
-                 "depth_mm": s.depth[i], "sed_MPa": sed[i, 0], "e_min": principal[i, 1],
-                 "sigma22_MPa": total[i], "p_MPa": p[i]} for i in range(len(s))]
+                 **where[i], "depth_mm": s.depth[i], "sed_MPa": sed[i, 0],
+                 "e_min": principal[i, 1], "sigma22_MPa": total[i], "p_MPa": p[i]}
+                for i in range(len(s))]
 
     def close(self) -> None:
         self.log.close()

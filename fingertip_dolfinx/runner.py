@@ -65,7 +65,7 @@ from .outputs import (
 from .pictures import field_pictures
 from .post import DerivedFields, FieldArrays, Profiles, Profiles3D
 from .problem import FingertipProblem
-from .receptors import ReceptorRecorder, load_receptors, write_spike_files
+from .receptors import ReceptorRecorder, load_receptors, surface_sites, write_spike_files
 from .result import Result
 from .scene import Scene, scene_record
 from .stepping.stepper import TimeStepper
@@ -195,10 +195,6 @@ class Run:
         self.scene, self.comm, self.progress = scene, comm, progress
         self.interrupts = interrupts
         self.three_d = isinstance(scene.section, Fingertip3D)
-        if self.three_d and scene.outputs.receptors:
-            raise InputError(f"{scene.name}: output.receptors", "receptor sites are placed on "
-                             "the 2D section's depth curves; 3D runs do not sample them yet.",
-                             "leave output.receptors out of a 3D scene.")
         receptors = load_receptors(scene.outputs.receptors) if scene.outputs.receptors else None
         self.out = prepare_directory(out, comm)
         self.checkpoint = Checkpoint(self.out, comm)
@@ -222,7 +218,8 @@ class Run:
                                      self.problem.region_energies())
         self._open_logs(after)
         self.receptors = None if receptors is None else ReceptorRecorder(
-            self.problem, self.derived, receptors, scene.section.outer, self.out, comm, after)
+            self.problem, self.derived, receptors, scene.section.outer, self.out, comm, after,
+            surface_sites(receptors, self.fm, scene.section.half) if self.three_d else None)
         self.fields = FieldWriters(self.out, comm, self._vtx_fields(), resume_after=after)
         self._last_state = (self.start_time, [f.x.array.copy() for f in self.problem.unknowns])
         self.step_count = self.steps_before
