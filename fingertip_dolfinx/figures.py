@@ -331,7 +331,7 @@ def plot_population_3d(afferents: dict, path: Path, title: str = "") -> None:
     from matplotlib.colors import Normalize
 
     names = [n for n in CLASS_MARKERS if np.any(afferents["class"] == n)]
-    fig = Figure(figsize=(3.2 * len(names) + 1.2, 5.2))
+    fig = Figure(figsize=(3.2 * len(names) + 1.2, 4.8), layout="constrained")
     axes = np.atleast_1d(fig.subplots(1, len(names), sharex=True, sharey=True))
     rate = afferents["mean_rate_per_s"]
     norm = Normalize(0.0, max(float(np.max(rate, initial=0.0)), 1.0))
@@ -339,7 +339,8 @@ def plot_population_3d(afferents: dict, path: Path, title: str = "") -> None:
         rows = afferents["class"] == name
         order = np.argsort(rate[rows])  # the firing ones on top
         points = ax.scatter(afferents["x_mm"][rows][order], afferents["z_mm"][rows][order],
-                            c=rate[rows][order], cmap="viridis", norm=norm, s=10,
+                            c=rate[rows][order], cmap="viridis", norm=norm,
+                            s=np.where(rate[rows][order] > 0, 24, 10),
                             marker=CLASS_MARKERS[name], edgecolors="none")
         ax.set_title(f"{name}: {rows.sum()} afferents, {int(np.sum(rate[rows] > 0))} firing",
                      fontsize=9)
