@@ -10,6 +10,14 @@ spacing of TouchSim's square grid), centred under x = 0, over |x| <= `sites.half
 the class depth along the surface's inward normal (`post.depth_curve`). A row is a slice of the
 areal population: it has the areal spacing, not the areal count.
 
+**Sites in 3D** (`surface_sites`): over the pulp surface of the 3D fingertip, round(density ×
+area) per class, uniformly at random (fixed seed) on the meshed facets, each at the class depth
+below its facet along the facet's inward normal; a half model's afferents cover both halves,
+those on the mirrored half read their mirror image.
+
+**Spike files** (`write_spike_files`, at the end of a run): spikes.csv, afferents.csv and the
+rate histories rates.npz from the run's receptors.csv.
+
 **Stimulus quantities** (sampled at the sites at every accepted step, `receptors.csv`): strain
 energy density (SED, MPa, the region's own elastic energy), the minimum principal log strain
 (e_min: the largest compression), and the vertical Cauchy stress σ22 (MPa; total stress: the
@@ -348,6 +356,12 @@ def pulp_triangles(fm) -> tuple[np.ndarray, np.ndarray]:
     outward = np.sign(np.einsum("ij,ij->i", normal, corners[:, 0] - centroid))
     corners = np.concatenate(msh.comm.allgather(corners)).reshape(-1, 3, 3)
     normal = np.concatenate(msh.comm.allgather(normal * outward[:, None])).reshape(-1, 3)
+    # One order whatever the partition (the placement draws from it): corners sorted within
+    # each facet, facets by their sorted corners.
+    for k in range(len(corners)):
+        corners[k] = corners[k][np.lexsort(corners[k].T[::-1])]
+    order = np.lexsort(corners.reshape(-1, 9).T[::-1])
+    corners, normal = corners[order], normal[order]
     if not len(corners):
         raise InputError("3D receptors: the mesh", "has no pulp surface (no facet tagged "
                          "pulp_surface): there is nowhere to place the afferents.",
