@@ -98,10 +98,12 @@ def prepare_directory(out: Path, comm: MPI.Comm) -> Path:
 
 
 #: What a run writes that a later run in the same folder might not overwrite: files named by
-#: output time, the figures, the summary, the receptor table and the fields of older versions.
+#: output time, the figures, the summary, the receptor table, the spike trains and the fields
+#: of older versions.
 RUN_OUTPUTS = ("summary.json", "fields_t*s.npz", "*_t*s.png", "force_history.png",
                "surface_profile.png", "surface_across.png", "surface_along.png",
-               "line_force.png", "receptors.csv", "*-from-*s.bp")
+               "line_force.png", "receptors.csv", "*-from-*s.bp", "spikes.csv",
+               "afferents.csv", "rates.npz", "population.png")
 
 
 def clear_earlier_run(out: Path, comm: MPI.Comm) -> None:

@@ -29,6 +29,8 @@ class Result:
     - `surface`, `depth`: the profiles at the output times, columns as arrays;
     - `fields(t)`: the fields at output time t as arrays (see `post.FieldArrays`);
     - `receptors()`: the receptor sites' samples per step (receptors.csv), if the run wrote them;
+    - `spikes`, `afferents`, `rates`: every afferent's spikes, its site and model, its rate
+      history (spikes.csv, afferents.csv, rates.npz), if the run had receptors;
     - shortcuts `time`, `force`, `surface_profile(t)`, `depth_profile(quantity, depth, t)`;
     - `route`: "time" or "adaptive" when `ft.run` returned it (None when read back).
     """
@@ -117,6 +119,36 @@ class Result:
             raise InputError(str(self.out), "holds no receptors.csv.",
                              'run the scene with output.receptors = "default" (or a set).')
         return _read_table(path, text=("class",), integer=("index",))
+
+    @cached_property
+    def spikes(self) -> dict[str, np.ndarray]:
+        """spikes.csv (a run with `output.receptors`): one row per spike, `class` (strings),
+        `afferent`, `site` (integers), `time_s`."""
+        return _read_table(self._receptor_file("spikes.csv"), ("class",), ("afferent", "site"))
+
+    @cached_property
+    def afferents(self) -> dict[str, np.ndarray]:
+        """afferents.csv: one row per afferent, `class`, `model` (strings), `afferent`, `site`,
+        `fit` (−1: a model without fits), `spikes` (integers), its site's reference position
+        `x_mm`, `y_mm` (3D: `z_mm`), `depth_mm`, `mean_rate_per_s`."""
+        return _read_table(self._receptor_file("afferents.csv"), ("class", "model"),
+                           ("afferent", "site", "fit", "spikes"))
+
+    @cached_property
+    def rates(self) -> dict[str, np.ndarray]:
+        """rates.npz, the firing-rate histories: `edges_s` (the time bins' edges), `counts`
+        and `rate_per_s` (bins × afferents; column j is afferent `afferent[j]`), `class`,
+        `site`."""
+        with np.load(self._receptor_file("rates.npz")) as data:
+            return {k: data[k] for k in data.files}
+
+    def _receptor_file(self, name: str) -> Path:
+        path = self.out / name
+        if not path.exists():
+            raise InputError(str(self.out), f"holds no {name} (a run with output.receptors "
+                             "writes it when it ends).", 'run the scene with output.receptors '
+                             '= "calibrated" (or another set).')
+        return path
 
     def fields(self, t: float) -> dict[str, np.ndarray]:
         """The fields at output time t, cell by cell (see `post.FieldArrays`): the corners'

@@ -7,7 +7,9 @@ deflection, the depth profiles, the fields as arrays (`fields_t<t>s.npz`, 2D and
 `Result.fields` and `Result.to_pyvista` read) and, in 2D, their pictures.
 At the end (or at a failure, or an interruption): summary.json and the figures. `run`
 returns a `Result` (result.py) that holds all of it as arrays. With `output.receptors`, every
-step also adds the receptor sites' rows to receptors.csv.
+step also adds the receptor sites' rows to receptors.csv, and the end (or a failure, or an
+interruption) writes every afferent's spike train (spikes.csv, afferents.csv, rates.npz) and
+the population picture (population.png).
 
 A resume is checked against the scene record kept with the checkpoint (`check_resume`).
 SIGINT (Ctrl-C) and SIGTERM stop a run at the next step boundary, all ranks at the same one:
@@ -29,7 +31,12 @@ from typing import Self
 import numpy as np
 from mpi4py import MPI
 
-from .afferents.receptors import ReceptorRecorder, load_receptors
+from .afferents.receptors import (
+    ReceptorRecorder,
+    load_receptors,
+    surface_sites,
+    write_spike_files,
+)
 from .errors import ConvergenceError, InputError, RunInterrupted
 from .geometry.fingertip3d import Fingertip3D
 from .geometry.mesh import build_mesh, write_xdmf
@@ -58,6 +65,7 @@ from .plotting.figures import (
     plot_depth_profiles,
     plot_force_history,
     plot_line_force,
+    plot_population,
     plot_surface_profiles,
 )
 from .plotting.pictures import field_pictures
@@ -213,10 +221,6 @@ class Run:
         self.scene, self.comm, self.progress = scene, comm, progress
         self.interrupts = interrupts
         self.three_d = isinstance(scene.section, Fingertip3D)
-        if self.three_d and scene.outputs.receptors:
-            raise InputError(f"{scene.name}: output.receptors", "receptor sites are placed on "
-                             "the 2D section's depth curves; 3D runs do not sample them yet.",
-                             "leave output.receptors out of a 3D scene.")
         receptors = load_receptors(scene.outputs.receptors) if scene.outputs.receptors else None
         self.out = prepare_directory(out, comm)
         self.checkpoint = Checkpoint(self.out, comm)
@@ -240,7 +244,8 @@ class Run:
                                      self.problem.region_energies())
         self._open_logs(after)
         self.receptors = None if receptors is None else ReceptorRecorder(
-            self.problem, self.derived, receptors, scene.section.outer, self.out, comm, after)
+            self.problem, self.derived, receptors, scene.section.outer, self.out, comm, after,
+            surface_sites(receptors, self.fm, scene.section.half) if self.three_d else None)
         self.fields = FieldWriters(self.out, comm, self._vtx_fields(), resume_after=after)
         self._last_state = (self.start_time, [f.x.array.copy() for f in self.problem.unknowns])
         self.step_count = self.steps_before
@@ -416,6 +421,8 @@ class Run:
         self.comm.barrier()
         summary = None
         if self.comm.rank == 0:
+            afferents = None if self.receptors is None else write_spike_files(
+                self.out, self.receptors.population, self.receptors.sites)
             summary = run_summary(self.out, scene_record(self.scene), self.fm.report, self.dofs,
                                   self.comm.size, converged=converged, failure=failure,
                                   wall=wall, output_times=self.scene.output_times,
@@ -423,6 +430,9 @@ class Run:
             if self.scene.outputs.pictures:
                 with whole_files(self.out, "figures", MPI.COMM_SELF) as folder:
                     _figures(self.out, self.scene.title, folder)
+                    if afferents is not None:
+                        plot_population(afferents, self.scene.section.outer,
+                                        folder / "population.png", self.scene.title)
                     if self.three_d:
                         _figures_3d(self.out, self.scene.title, folder)
         summary = self.comm.bcast(summary, root=0)

@@ -13,7 +13,6 @@ MARKER = "# long:"
 #: Functions over the limit in modules being split right now (being split: to be removed from
 #: this list when the split is merged).
 BEING_SPLIT = {
-    "afferents/receptors.py": {"afferent_responses"},
 }
 
 

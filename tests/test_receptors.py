@@ -381,3 +381,81 @@ def test_the_sa1_under_the_bar_fires_on_the_ramp(one_point):
     r = afferent_responses(one_point, "calibrated")
     centre = r.of("SA1") & (r.x == 0.0)
     assert r.mean_rate[centre][0] > 1 and r.rate[-1, centre][0] > 5
+
+
+# --- spike trains, the afferent list and the rate histories of a run --------------------------
+
+
+def test_the_spike_file_holds_the_responses_spike_times(one_point):
+    """spikes.csv holds exactly the spike times of `afferent_responses` on the run's own set
+    (full precision: read back bit for bit), afferent by afferent, in time order."""
+    r = afferent_responses(one_point)
+    spikes = one_point.spikes
+    assert sum(len(s) for s in r.spikes) == len(spikes["time_s"]) > 0
+    for j, train in enumerate(r.spikes):
+        rows = spikes["afferent"] == j
+        np.testing.assert_array_equal(spikes["time_s"][rows], train)
+        assert set(spikes["class"][rows]) <= {r.cls[j]}
+        assert set(spikes["site"][rows]) <= {r.index[j]}
+
+
+def test_the_afferent_list_names_each_site_and_its_model(one_point):
+    """afferents.csv: one row per site of the set, at the site's reference position and
+    depth, with its model and its spike count over the run."""
+    from fingertip_dolfinx.afferents.receptors import AFFERENT_COLUMNS
+
+    a = one_point.afferents
+    assert tuple(a) == AFFERENT_COLUMNS
+    sites = load_receptors().sites(SECTION.outer)
+    assert len(a["afferent"]) == len(sites)
+    np.testing.assert_array_equal(a["afferent"], np.arange(len(sites)))
+    np.testing.assert_array_equal(a["class"], sites.cls)
+    np.testing.assert_array_equal(a["site"], sites.index)
+    np.testing.assert_array_equal(np.column_stack([a["x_mm"], a["y_mm"]]), sites.points)
+    np.testing.assert_array_equal(a["depth_mm"], sites.depth)
+    assert set(a["model"]) == {"lif"} and set(a["fit"]) == {-1}
+    counts = np.bincount(one_point.spikes["afferent"], minlength=len(sites))
+    np.testing.assert_array_equal(a["spikes"], counts)
+    np.testing.assert_array_equal(a["mean_rate_per_s"], counts / one_point.time[-1])
+
+
+def test_the_rate_histories_are_the_spike_counts_per_bin(one_point):
+    """rates.npz: per afferent and 10 ms bin the count of spikes.csv's times in the bin
+    (exact), the rate = count / width; the bins cover the run."""
+    rates, spikes = one_point.rates, one_point.spikes
+    edges = rates["edges_s"]
+    assert edges[0] == 0.0 and edges[-1] == one_point.time[-1]
+    np.testing.assert_allclose(np.diff(edges), 0.01, rtol=1e-9)
+    for j in rates["afferent"]:
+        times = spikes["time_s"][spikes["afferent"] == j]
+        expected = [np.sum((times >= lo) & ((times < hi) | (hi == edges[-1])))
+                    for lo, hi in zip(edges[:-1], edges[1:])]
+        np.testing.assert_array_equal(rates["counts"][:, j], expected)
+    np.testing.assert_array_equal(rates["rate_per_s"], rates["counts"] / np.diff(edges)[:, None])
+    assert rates["counts"].sum() == len(spikes["time_s"])
+
+
+def test_rate_bins_end_at_the_run_and_stay_few():
+    from fingertip_dolfinx.afferents.receptors import rate_bins
+
+    np.testing.assert_allclose(rate_bins(0.025), [0.0, 0.01, 0.02, 0.025])
+    assert len(rate_bins(1.0)) == 101 and rate_bins(1.0)[-1] == 1.0
+    long = rate_bins(100.0)
+    assert len(long) == 1001 and np.allclose(np.diff(long), 0.1)
+    with pytest.raises(InputError, match="end"):
+        rate_bins(0.0)
+
+
+def test_spike_trains_need_a_model_for_every_class_sampled(one_point):
+    """A set without the class a run sampled cannot give its spikes: the error names the
+    class and the set; a run without receptors says it has no spike file."""
+    data = load_receptors().record()
+    del data["PC"]
+    with pytest.raises(InputError, match="'PC'.*not in the set"):
+        afferent_responses(one_point, receptors_from_dict(data))
+    from fingertip_dolfinx.result import Result
+
+    bare = Result(one_point.out)
+    bare.out = one_point.out / "checkpoint"  # a folder without the files
+    with pytest.raises(InputError, match="spikes.csv"):
+        _ = bare.spikes

@@ -10,6 +10,14 @@ spacing of TouchSim's square grid), centred under x = 0, over |x| <= `sites.half
 the class depth along the surface's inward normal (`post.depth_curve`). A row is a slice of the
 areal population: it has the areal spacing, not the areal count.
 
+**Sites in 3D** (`surface_sites`): over the pulp surface of the 3D fingertip, round(density ×
+area) per class, uniformly at random (fixed seed) on the meshed facets, each at the class depth
+below its facet along the facet's inward normal; a half model's afferents cover both halves,
+those on the mirrored half read their mirror image.
+
+**Spike files** (`write_spike_files`, at the end of a run): spikes.csv, afferents.csv and the
+rate histories rates.npz from the run's receptors.csv.
+
 **Stimulus quantities** (sampled at the sites at every accepted step, `receptors.csv`): strain
 energy density (SED, MPa, the region's own elastic energy), the minimum principal log strain
 (e_min: the largest compression), and the vertical Cauchy stress σ22 (MPa; total stress: the
@@ -99,6 +107,9 @@ CLASSES = ("SA1", "RA", "PC")
 #: The columns of receptors.csv (one row per receptor per accepted step).
 RECEPTOR_COLUMNS = ("time_s", "class", "index", "x_mm", "depth_mm", "sed_MPa", "e_min",
                     "sigma22_MPa", "p_MPa")
+#: A 3D run's: the site's own reference position (x_mm, y_mm, z_mm; x < 0 on the mirrored half
+#: of a half model) instead of the surface point's x.
+RECEPTOR_COLUMNS_3D = (*RECEPTOR_COLUMNS[:4], "y_mm", "z_mm", *RECEPTOR_COLUMNS[4:])
 WEIGHTS = ("s_pos", "s_neg", "ds_pos", "ds_neg", "dds_pos", "dds_neg")
 HOLDS = ("linear", "constant")
 DEFAULT_SET = "default"
@@ -240,6 +251,9 @@ class Sites:
     x: np.ndarray
     depth: np.ndarray
     points: np.ndarray
+    #: Where the half model is sampled for each site (3D: a site on the mirrored half, x < 0,
+    #: reads its mirror image (−x, y, z)); None: at `points`.
+    sample_points: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.cls)
@@ -313,6 +327,89 @@ class ReceptorPopulation:
         return {"name": self.name, "description": self.description,
                 "sites": {"half_width": self.half_width},
                 **{c.name: table(c) for c in self.classes}}
+
+
+#: The seed of the 3D populations' random site placement (TouchSim places afferents uniformly at
+#: random over a region, `Surface.sample_uniform`): fixed, so a run's population is the same on
+#: every run, rank count and resume.
+SURFACE_SEED = 2017
+
+
+def pulp_triangles(fm) -> tuple[np.ndarray, np.ndarray]:
+    """(corners (n, 3, 3), unit outward normals (n, 3)) of every pulp-surface facet of a 3D
+    mesh, gathered on every rank (each facet once: its owner's). The normal points away from
+    the facet's cell. InputError if the mesh has no pulp surface."""
+    from dolfinx.mesh import entities_to_geometry
+
+    msh, fdim = fm.mesh, 2
+    tag = fm.names.get("pulp_surface")
+    facets = fm.facet_tags.find(tag) if tag is not None else np.zeros(0, dtype=np.int32)
+    facets = facets[facets < msh.topology.index_map(fdim).size_local]
+    msh.topology.create_connectivity(fdim, 3)
+    x = msh.geometry.x
+    corners = x[entities_to_geometry(msh, fdim, facets)][:, :3, :]
+    f2c = msh.topology.connectivity(fdim, 3)
+    cells = np.array([f2c.links(f)[0] for f in facets], dtype=np.int32)
+    centroid = x[entities_to_geometry(msh, 3, cells)].mean(axis=1) if len(cells) else corners[:, 0]
+    normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    outward = np.sign(np.einsum("ij,ij->i", normal, corners[:, 0] - centroid))
+    corners = np.concatenate(msh.comm.allgather(corners)).reshape(-1, 3, 3)
+    normal = np.concatenate(msh.comm.allgather(normal * outward[:, None])).reshape(-1, 3)
+    # One order whatever the partition (the placement draws from it): corners sorted within
+    # each facet, facets by their sorted corners.
+    for k in range(len(corners)):
+        corners[k] = corners[k][np.lexsort(corners[k].T[::-1])]
+    order = np.lexsort(corners.reshape(-1, 9).T[::-1])
+    corners, normal = corners[order], normal[order]
+    if not len(corners):
+        raise InputError("3D receptors: the mesh", "has no pulp surface (no facet tagged "
+                         "pulp_surface): there is nowhere to place the afferents.",
+                         "use a 3D section whose mesh tags its palmar skin (male-index-3d).")
+    return corners, normal
+
+
+def triangle_areas(corners: np.ndarray) -> np.ndarray:
+    return 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0],
+                                         corners[:, 2] - corners[:, 0]), axis=1)
+
+
+def surface_sites(population: ReceptorPopulation, fm, half: bool,
+                  seed: int = SURFACE_SEED) -> Sites:
+    """The sites of a 3D population over the pulp surface of the whole finger: per class
+    round(density × pulp area) sites, uniformly at random over the (meshed) surface, each at
+    the class depth below it along the facet's inward normal.
+
+    A half model (`half`: its mesh holds x >= 0, the plane x = 0 a mirror) stands for the whole
+    finger: the pulp area is twice the meshed one, each site lies on the meshed half or, with
+    probability 1/2, on the mirrored half (x → −x); a site on the mirrored half is sampled at
+    its mirror image (`Sites.sample_points`), exact for the scene the half model solves (one
+    symmetric about x = 0)."""
+    corners, normal = pulp_triangles(fm)
+    area = triangle_areas(corners)
+    total = (2.0 if half else 1.0) * area.sum() / 100.0  # cm²
+    rng = np.random.default_rng(seed)
+    cls, index, depth, points, sampled = [], [], [], [], []
+    for c in population.classes:
+        n = round(c.density * total)
+        which = rng.choice(len(area), size=n, p=area / area.sum())
+        r1, r2 = np.sqrt(rng.random(n)), rng.random(n)  # uniform on a triangle
+        tri = corners[which]
+        on = ((1 - r1)[:, None] * tri[:, 0] + (r1 * (1 - r2))[:, None] * tri[:, 1]
+              + (r1 * r2)[:, None] * tri[:, 2])
+        site = on - c.depth * normal[which]
+        shown = site.copy()
+        if half:
+            shown[rng.random(n) < 0.5, 0] *= -1.0
+            site[:, 0] = np.abs(site[:, 0])  # a normal at x = 0 may tip a site by round-off
+        points.append(shown)
+        sampled.append(site)
+        cls += [c.name] * n
+        index.append(np.arange(n))
+        depth.append(np.full(n, c.depth))
+    points = np.concatenate(points)
+    return Sites(np.array(cls), np.concatenate(index), points[:, 0], np.concatenate(depth),
+                 points, np.concatenate(sampled))
 
 
 def row_abscissae(outer, spacing: float, half_width: float) -> np.ndarray:
@@ -599,13 +696,7 @@ def afferent_responses(result, population: ReceptorPopulation | str | None = Non
         from ..result import Result
 
         result = Result(result)
-    if population is None:
-        recorded = Path(result.out) / "receptors.json"
-        population = (receptors_from_dict(json.loads(recorded.read_text()), str(recorded))
-                      if recorded.exists() else
-                      load_receptors(result.summary["scene_data"]["output"]["receptors"]))
-    elif isinstance(population, str | Path):
-        population = load_receptors(population)
+    population = _population_of(result, population)
     table = result.receptors()
     times = np.unique(table["time_s"])
     if times[0] > 0:
@@ -613,24 +704,13 @@ def afferent_responses(result, population: ReceptorPopulation | str | None = Non
     keys = sorted({(c, int(i)) for c, i in zip(table["class"], table["index"])},
                   key=lambda k: (CLASSES.index(k[0]) if k[0] in CLASSES else 99, k[1]))
     n_t, n_r = len(times), len(keys)
-    stimulus, sed = np.zeros((n_t, n_r)), np.zeros((n_t, n_r))
-    x, depth = np.zeros(n_r), np.zeros(n_r)
-    row_of_time = {float(t): k for k, t in enumerate(times)}
-    column = {key: j for j, key in enumerate(keys)}
-    for r in range(len(table["time_s"])):
-        j = column[(table["class"][r], int(table["index"][r]))]
-        k = row_of_time[float(table["time_s"][r])]
-        c = population[table["class"][r]]
-        name, sign, _ = QUANTITIES[c.quantity]
-        stimulus[k, j] = sign * table[name][r]
-        sed[k, j] = table["sed_MPa"][r]
-        x[j], depth[j] = table["x_mm"][r], table["depth_mm"][r]
+    stimulus, sed, x, depth = _site_samples(table, population, times, keys)
     spikes, rate = [], np.zeros((n_t, n_r))
     sed_rate = np.full((n_t, n_r), np.nan)
-    for j, (name, index) in enumerate(keys):
+    fitted = _fitted_spikes(population, keys, times, np.nan_to_num(stimulus))
+    for j, (name, _) in enumerate(keys):
         c = population[name]
-        train = (saal_spikes(c, index, times, np.nan_to_num(stimulus[:, j]))
-                 if c.model == "saal2017" else
+        train = (fitted[j] if c.model == "saal2017" else
                  c.lif.spikes(times, np.nan_to_num(stimulus[:, j]), hold))
         spikes.append(train)
         counts = np.histogram(train, bins=times)[0] if len(train) else np.zeros(n_t - 1)
@@ -644,18 +724,172 @@ def afferent_responses(result, population: ReceptorPopulation | str | None = Non
         mean_rate=np.array([len(s) / duration for s in spikes]), sed_rate=sed_rate)
 
 
-def saal_spikes(c: ReceptorClass, index: int, t, s) -> np.ndarray:
+def _population_of(result, population) -> ReceptorPopulation:
+    """The receptor set to apply: the one given (a set, a name or a path), else the one the
+    run sampled (its receptors.json, or its scene's `output.receptors`)."""
+    if isinstance(population, str | Path):
+        return load_receptors(population)
+    if population is not None:
+        return population
+    recorded = Path(result.out) / "receptors.json"
+    if recorded.exists():
+        return receptors_from_dict(json.loads(recorded.read_text()), str(recorded))
+    return load_receptors(result.summary["scene_data"]["output"]["receptors"])
+
+
+def _site_samples(table: dict, population: ReceptorPopulation, times: np.ndarray,
+                  keys: list) -> tuple[np.ndarray, ...]:
+    """receptors.csv's rows as arrays per (time, receptor): the stimulus each class reads
+    (with its sign), the SED, and each receptor's x and depth."""
+    n_t, n_r = len(times), len(keys)
+    stimulus, sed = np.zeros((n_t, n_r)), np.zeros((n_t, n_r))
+    x, depth = np.zeros(n_r), np.zeros(n_r)
+    row_of_time = {float(t): k for k, t in enumerate(times)}
+    column = {key: j for j, key in enumerate(keys)}
+    for r in range(len(table["time_s"])):
+        j = column[(table["class"][r], int(table["index"][r]))]
+        k = row_of_time[float(table["time_s"][r])]
+        name, sign, _ = QUANTITIES[population[table["class"][r]].quantity]
+        stimulus[k, j] = sign * table[name][r]
+        sed[k, j] = table["sed_MPa"][r]
+        x[j], depth[j] = table["x_mm"][r], table["depth_mm"][r]
+    return stimulus, sed, x, depth
+
+
+# --- spike trains and rate histories of a run ----------------------------------------------
+
+#: The columns of spikes.csv (one row per spike) and afferents.csv (one row per afferent) of a
+#: run with receptors; `afferent` numbers the afferents of the run (0, 1, ...), `site` is the
+#: index of the site along its class's row (receptors.csv's `index`); `fit`: the row of the
+#: class's fits in the parameter file a saal2017 afferent uses, −1 for a model without fits.
+SPIKE_COLUMNS = ("class", "afferent", "site", "time_s")
+AFFERENT_COLUMNS = ("class", "afferent", "site", "model", "fit", "x_mm", "y_mm", "depth_mm",
+                    "spikes", "mean_rate_per_s")
+#: The rate histories' bins (rates.npz): 10 ms wide, wider on long runs (at most 1000 bins).
+RATE_BIN_S = 0.01
+MAX_RATE_BINS = 1000
+
+
+def afferent_fit(c: ReceptorClass, index: int) -> int:
+    """The fit (row of the class in the parameter file) the afferent at site `index` uses:
+    the class's fits in turn along the row, as `saal_spikes`; −1 for a model without fits."""
+    if c.model != "saal2017":
+        return -1
+    return c.saal.fits[index % len(c.saal.fits)]
+
+
+def rate_bins(end: float, width: float = RATE_BIN_S, max_bins: int = MAX_RATE_BINS) -> np.ndarray:
+    """Bin edges from 0 to `end` (s): `width` apart (wider if there would be more than
+    `max_bins`), the last bin ending at `end` (shorter when `end` is not a whole number of
+    widths)."""
+    end = positive("rate bins: end", end, "s")
+    width = max(width, end / max_bins)
+    n = max(1, math.ceil(end / width - 1e-9))
+    return np.append(np.arange(n) * width, end)
+
+
+def rate_histories(responses: AfferentResponses, edges: np.ndarray | None = None) -> dict:
+    """Per afferent (columns) the spikes counted in each time bin (rows; np.histogram's bins:
+    [e_k, e_k+1), the last one closed) and the rate = count / bin width (spikes/s), as the
+    arrays of rates.npz: `edges_s`, `counts`, `rate_per_s`, `afferent`, `class`, `site`."""
+    edges = rate_bins(responses.time[-1]) if edges is None else np.asarray(edges, dtype=float)
+    counts = np.zeros((len(edges) - 1, len(responses.spikes)), dtype=np.int64)
+    for j, train in enumerate(responses.spikes):
+        counts[:, j] = np.histogram(train, bins=edges)[0]
+    return {"edges_s": edges, "counts": counts, "rate_per_s": counts / np.diff(edges)[:, None],
+            "afferent": np.arange(len(responses.spikes)), "class": responses.cls,
+            "site": responses.index}
+
+
+def spike_tables(responses: AfferentResponses, population: ReceptorPopulation,
+                 positions: Mapping) -> tuple[list[dict], list[dict]]:
+    """(rows of afferents.csv, rows of spikes.csv) of a run's responses. `positions`: the
+    reference position (x, y[, z]) of each site by (class, index)."""
+    afferents, spikes = [], []
+    duration = responses.time[-1] - responses.time[0]
+    for j, (name, index) in enumerate(zip(responses.cls, responses.index)):
+        c, index = population[name], int(index)
+        position = positions[(name, index)]
+        afferents.append({
+            "class": name, "afferent": j, "site": index, "model": c.model,
+            "fit": afferent_fit(c, index), **dict(zip(("x_mm", "y_mm", "z_mm"), position)),
+            "depth_mm": responses.depth[j], "spikes": len(responses.spikes[j]),
+            "mean_rate_per_s": len(responses.spikes[j]) / duration})
+        spikes += [{"class": name, "afferent": j, "site": index, "time_s": float(t)}
+                   for t in responses.spikes[j]]
+    return afferents, spikes
+
+
+def write_spike_files(out: Path, population: ReceptorPopulation, sites: Sites) -> dict | None:
+    """spikes.csv, afferents.csv and rates.npz of the run in `out` (rank 0), each written
+    whole, from its receptors.csv: every afferent's spike train over the run's steps. Returns
+    afferents.csv's columns (for the population picture); None if no step was sampled."""
+    from ..outputs import save_npz
+    from ..result import Result
+
+    result = Result(out)
+    if not (Path(out) / "receptors.csv").exists() or not result.receptors():
+        return None
+    responses = afferent_responses(result, population)
+    positions = {(c, int(i)): tuple(p) for c, i, p in zip(sites.cls, sites.index, sites.points)}
+    afferents, spikes = spike_tables(responses, population, positions)
+    columns = AFFERENT_COLUMNS if sites.points.shape[1] == 2 else (
+        *AFFERENT_COLUMNS[:7], "z_mm", *AFFERENT_COLUMNS[7:])
+    _write_rows(Path(out) / "afferents.csv", columns, afferents)
+    _write_rows(Path(out) / "spikes.csv", SPIKE_COLUMNS, spikes)
+    save_npz(Path(out) / "rates.npz", **rate_histories(responses))
+    return {k: np.array([row[k] for row in afferents]) for k in columns}
+
+
+def _write_rows(path: Path, columns, rows: list[dict]) -> None:
+    """A whole CSV file; numbers to full precision (spike times read back exactly)."""
+    import csv
+
+    from ..outputs import whole
+
+    def cell(v):
+        return repr(float(v)) if isinstance(v, float | np.floating) else v
+
+    with whole(path) as tmp, tmp.open("w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=columns)
+        writer.writeheader()
+        writer.writerows({k: cell(row[k]) for k in columns} for row in rows)
+
+
+def _fitted_spikes(population: ReceptorPopulation, keys, t, stimulus) -> dict[int, np.ndarray]:
+    """`saal_spikes` of every column j of `stimulus` whose class uses the fitted afferents,
+    one vectorised call per class (3D populations have ~1000 sites): {j: spike times}."""
+    out = {}
+    for c in population.classes:
+        if c.model != "saal2017":
+            continue
+        columns = [j for j, (name, _) in enumerate(keys) if name == c.name]
+        if columns:
+            trains = saal_spikes(c, [keys[j][1] for j in columns], t, stimulus[:, columns].T)
+            out |= dict(zip(columns, trains))
+    return out
+
+
+def saal_spikes(c: ReceptorClass, index, t, s):
     """Spike times (s) of site `index` of a class using the Saal et al. 2017 fits: the site's
     fit is the class's fits in turn along the row (fits[index mod n], a deterministic mix as
     TouchSim's random choice per afferent); the samples s at times t (from rest) are
     interpolated linearly onto the model's 5 kHz grid (the run's steps carry no faster
-    content) and mapped to its inputs (SaalModel)."""
+    content) and mapped to its inputs (SaalModel). Several sites at once: `index` a list and
+    s (n, T), a list of spike times back (one vectorised simulation)."""
+    if np.ndim(index) == 0:
+        return _saal_spikes(c, [int(index)], t, np.reshape(s, (1, -1)))[0]
+    return _saal_spikes(c, list(index), t, np.asarray(s))
+
+
+def _saal_spikes(c: ReceptorClass, index: list[int], t, s) -> list[np.ndarray]:
+    """`saal_spikes` of the sites `index` (a list), samples s (n, T)."""
     aff = c.saal.afferents(c.name)
-    aff = aff.take([index % len(aff)])
+    aff = aff.take([i % len(aff) for i in index])
     grid = np.arange(int(math.floor(t[-1] * aff.fs)) + 1) / aff.fs
-    static, dynamic = site_inputs(np.interp(grid, t, s), aff.fs, c.saal.input_scale,
-                                  c.saal.kappa(c.name))
-    return spike_times(aff, static, dynamic)[0]
+    sampled = np.array([np.interp(grid, t, row) for row in s])
+    static, dynamic = site_inputs(sampled, aff.fs, c.saal.input_scale, c.saal.kappa(c.name))
+    return spike_times(aff, static, dynamic)
 
 
 def threshold_amplitude(lif: LIF, frequency: float, *, offset: float = 0.0, cycles: int = 4,
@@ -730,24 +964,27 @@ class ReceptorRecorder:
     rank calls `write`.
 
     `problem`: the run's FingertipProblem, `derived`: its post.DerivedFields, `outer`: the
-    section's outer ellipse; `resume_after`: keep the file's rows up to this time (--resume).
+    section's outer ellipse; `resume_after`: keep the file's rows up to this time (--resume);
+    `sites`: the sites (3D: `surface_sites`), else the section's rows on `outer`.
     """
 
     def __init__(self, problem, derived, population: ReceptorPopulation, outer, out: Path,
-                 comm, resume_after: float | None = None):
+                 comm, resume_after: float | None = None, sites: Sites | None = None):
 
         from ..outputs import CsvLog
         from ..post import CauchyStress, PointSampler
 
         self.problem, self.derived, self.population = problem, derived, population
-        self.sites = population.sites(outer)
-        self.sampler = PointSampler(problem.mesh, self.sites.points)
-        self.pressure, self.in_tissue = pressure_sampling(problem, self.sampler,
-                                                          self.sites.points)
+        self.sites = population.sites(outer) if sites is None else sites
+        self.gdim = problem.mesh.geometry.dim
+        at = self.sites.points if self.sites.sample_points is None else self.sites.sample_points
+        self.sampler = PointSampler(problem.mesh, at)
+        self.pressure, self.in_tissue = pressure_sampling(problem, self.sampler, at)
         laws = {problem.tags[name]: law for name, law in problem.laws.regions.items()}
         self.stress = CauchyStress(problem.u, problem.fmesh.cell_tags, laws,
                                    problem.options.quadrature_degree)
-        self.log = CsvLog(Path(out) / "receptors.csv", RECEPTOR_COLUMNS, comm, resume_after)
+        columns = RECEPTOR_COLUMNS if self.gdim == 2 else RECEPTOR_COLUMNS_3D
+        self.log = CsvLog(Path(out) / "receptors.csv", columns, comm, resume_after)
         self.comm = comm
         if comm.rank == 0:  # the set the run sampled, for afferent_responses
             (Path(out) / "receptors.json").write_text(
@@ -770,11 +1007,15 @@ class ReceptorRecorder:
             return None
         p = (np.full(len(self.sites), np.nan) if p is None
              else np.where(self.in_tissue, p[:, 0], np.nan))
-        total = sigma[:, 3] - np.nan_to_num(p)  # σ22 − p where there is a pore pressure
+        d = self.gdim  # σ row by row: σ22 is component d + 1 (principal: max, min)
+        total = sigma[:, d + 1] - np.nan_to_num(p)  # σ22 − p where there is a pore pressure
         s = self.sites
+        where = [{} for _ in range(len(s))] if d == 2 else [
+            {"y_mm": y, "z_mm": z} for y, z in s.points[:, 1:]]
         return [{"time_s": t, "class": s.cls[i], "index": int(s.index[i]), "x_mm": s.x[i],
-                 "depth_mm": s.depth[i], "sed_MPa": sed[i, 0], "e_min": principal[i, 1],
-                 "sigma22_MPa": total[i], "p_MPa": p[i]} for i in range(len(s))]
+                 **where[i], "depth_mm": s.depth[i], "sed_MPa": sed[i, 0],
+                 "e_min": principal[i, 1], "sigma22_MPa": total[i], "p_MPa": p[i]}
+                for i in range(len(s))]
 
     def close(self) -> None:
         self.log.close()

@@ -284,3 +284,70 @@ def plot_spacing_profiles(runs: dict[float, dict], path: Path, time_s: float, de
     fig.suptitle(f"{title} at depth {depth_mm:g} mm, t = {time_s:g} s")
     fig.tight_layout(rect=(0, 0, 0.88, 1))
     fig.savefig(path, dpi=150)
+
+
+#: The population picture's marker of each afferent class.
+CLASS_MARKERS = {"SA1": "o", "RA": "s", "PC": "D"}
+
+
+def plot_population(afferents: dict, outer, path: Path, title: str = "") -> None:
+    """The afferents of a run at their sites on the section (reference positions), coloured
+    by their mean firing rate over the run, one marker per class, with the palmar outer
+    surface for orientation (afferents.csv's columns; `outer`: the section's outer ellipse)."""
+    from matplotlib.colors import Normalize
+
+    if "z_mm" in afferents:
+        return plot_population_3d(afferents, path, title)
+    fig = Figure(figsize=(8.0, 4.2))
+    ax = fig.subplots()
+    x, y, rate = afferents["x_mm"], afferents["y_mm"], afferents["mean_rate_per_s"]
+    half = float(np.max(np.abs(x))) + 1.0
+    edge = min(half / outer.a, 1.0)  # the palmar arc: x = a cos u, u in (−π, 0)
+    u = np.linspace(-np.arccos(-edge), -np.arccos(edge), 200)
+    surface = outer.point(u)
+    ax.plot(surface[:, 0], surface[:, 1], color="0.3", lw=1.0, label="outer surface")
+    norm = Normalize(0.0, max(float(np.max(rate, initial=0.0)), 1.0))
+    for name, marker in CLASS_MARKERS.items():
+        rows = afferents["class"] == name
+        if rows.any():
+            points = ax.scatter(x[rows], y[rows], c=rate[rows], cmap="viridis", norm=norm,
+                                marker=marker, s=36, edgecolors="k", linewidths=0.5,
+                                label=f"{name} ({rows.sum()})")
+    fig.colorbar(points, ax=ax, label="mean rate over the run (spikes/s)", shrink=0.7)
+    ax.set_ylim(min(float(surface[:, 1].min()), float(y.min())) - 0.4, float(y.max()) + 0.6)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    ax.set_title(title)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=4, fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=150)
+
+
+def plot_population_3d(afferents: dict, path: Path, title: str = "") -> None:
+    """A 3D run's afferents seen from the palm (their sites projected on the x–z plane: across
+    and along the finger), one panel per class, coloured by mean firing rate over the run
+    (one colour scale); afferents.csv's columns."""
+    from matplotlib.colors import Normalize
+
+    names = [n for n in CLASS_MARKERS if np.any(afferents["class"] == n)]
+    fig = Figure(figsize=(3.2 * len(names) + 1.2, 4.8), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(1, len(names), sharex=True, sharey=True))
+    rate = afferents["mean_rate_per_s"]
+    norm = Normalize(0.0, max(float(np.max(rate, initial=0.0)), 1.0))
+    for ax, name in zip(axes, names):
+        rows = afferents["class"] == name
+        order = np.argsort(rate[rows])  # the firing ones on top
+        points = ax.scatter(afferents["x_mm"][rows][order], afferents["z_mm"][rows][order],
+                            c=rate[rows][order], cmap="viridis", norm=norm,
+                            s=np.where(rate[rows][order] > 0, 24, 10),
+                            marker=CLASS_MARKERS[name], edgecolors="none")
+        ax.set_title(f"{name}: {rows.sum()} afferents, {int(np.sum(rate[rows] > 0))} firing",
+                     fontsize=9)
+        ax.set_xlabel("x (mm), across the finger")
+        ax.set_aspect("equal")
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("z (mm), along the finger (tip at the top)")
+    fig.colorbar(points, ax=list(axes), label="mean rate over the run (spikes/s)", shrink=0.8)
+    fig.suptitle(f"{title}: afferents seen from the palm", fontsize=10)
+    fig.savefig(path, dpi=150)
