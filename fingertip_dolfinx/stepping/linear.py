@@ -12,29 +12,14 @@ log n.
 K by smoothed-aggregation algebraic multigrid (GAMG, told the rigid-body modes of the
 displacement space: its near null space) and the pressure Schur complement
 S = C + B K⁻¹ Bᵀ by GAMG on S_p = C + M/(λ + 2μ) (M the pressure mass matrix, λ + 2μ the
-subcutaneous solid's P-wave modulus; C as assembled), "full" factorisation. Measured at h =
-0.4 mm, bone rigid, Krylov iterations per Newton step: S_p 33, PETSc's "selfp"
-(C + B diag(K)⁻¹ Bᵀ) 170 with GAMG and 50 with Jacobi on it; "lower" instead of "full" 47;
-Jacobi instead of GAMG on S_p 40. Without a pore law there is no split: FGMRES with GAMG on K
-(CG is not safe: contact makes K non-symmetric, Nitsche θ = 0).
-
-Measured (benchmarks/iterative_solver.py; 1pt fingertip, biphasic, two 0.05 s steps of the
-ramp, P2/P1, ksp_rtol 1e-10): bone and nail rigid (`model.rigid_bone = true`), Krylov
-iterations per Newton step 31, 39, 55 at h = 0.4, 0.2, 0.1 mm (2.3k, 6.6k, 22k dofs: 1.8x from
-the coarse to the 4x finer mesh), force equal to MUMPS's to 1e-10; 1 and 2 ranks 31 and 30.
-The stiff regions: the 17 GPa bone is not what hurts GAMG (Jacobi-scaled Chebyshev smoothing
-and the strength threshold keep its 10⁷ larger entries apart from the tissue's): with the bone
-rigid but the nail elastic, 95 per Newton step at h = 0.2; with the nail rigid but the bone
-elastic, 39 (as both rigid, 39). The thin 170 MPa nail plate is: its bending is poorly
-represented on GAMG's coarse aggregates (both elastic: 186, 110 per Newton step at h = 0.4,
-0.2, and over 400 in some solves at h = 0.1). A threshold of 0.1 helped elastic (65 at 0.2) but
-failed with both rigid; 0.01 is kept. So the iterative route is meant for rigid bone and nail
-(the clamp moves from the nail centre to their nodes: at h = 0.2 the force changes by 2 % at
-0.1 mm); with them elastic it converges on coarse meshes, slowly. MUMPS stays the default: in
-2D it is 3-5x faster at these sizes (LU fill ~ n log n); the Krylov route is for 3D. There
-(benchmarks/fingertip_3d.py, the 3D line load's first 0.025 s steps, bone and nail rigid,
-quadrature degree 2): 59.6, 57.4, 61.1 and 97.0 FGMRES iterations per Newton step at h = 0.8,
-0.57, 0.4 and 0.2 mm (25k to 486k dofs: 1.63x over h/4, most of it from 0.4 to 0.2 mm).
+subcutaneous solid's P-wave modulus; C as assembled), "full" factorisation: of the Schur
+approximations and factorisations tried, the one with the fewest Krylov iterations. Without a
+pore law there is no split: FGMRES with GAMG on K (CG is not safe: contact makes K
+non-symmetric, Nitsche θ = 0). The iterative route is meant for rigid bone and nail: GAMG's
+coarse aggregates represent the bending of the thin, stiff nail plate poorly. MUMPS stays the
+default: in 2D it is faster at these sizes (LU fill ~ n log n); the Krylov route is for 3D.
+The measurements behind these choices: docs/benchmarks/measurements.md, "Linear solvers
+inside Newton".
 
 Both are chosen by scene data (`[solver] linear = "direct" | "iterative"`, checked by
 `options.check_linear`, which needs no PETSc); any PETSc option

@@ -503,13 +503,9 @@ class JacobianReuse:
     as good), else reassembled; every solve starts with a fresh one. Newton's tolerances are
     unchanged: only the path to them differs.
 
-    Measured on the line load (benchmarks/line_load.py, 33 steps, 179 factorisations with full
-    Newton, 164 once the first step no longer fails): threshold 0.02 saves 17 factorisations
-    for 5 more (chord) iterations, 0.05 saves 25 for 12 more, forces and SED equal to 1e-7;
-    0.1 keeps Jacobians in the slow, contact-driven phase of the ramp's steps, which then take
-    more iterations, grow less and are cut (43 steps, 168 factorisations, more time). Keeping
-    the Jacobian across steps as well was worse still (0.25: 54 steps and 227 factorisations;
-    0.5: 75 steps). The line-load scene uses 0.02, well clear of that edge.
+    A threshold too loose keeps Jacobians in the slow, contact-driven phase of a ramp's steps,
+    which then take more iterations and are cut; the line-load scene uses 0.02, well clear of
+    that edge (docs/benchmarks/measurements.md, "Jacobian reuse").
     """
 
     def __init__(self, snes: PETSc.SNES, threshold: float):
