@@ -27,7 +27,7 @@ The names below are imported on first use, so that `import fingertip_dolfinx` (a
 `fingertip --help` command) stays fast.
 """
 
-from importlib import import_module
+from .lazy import lazy_exports
 
 # The PyPI wheel's PETSc must be set up before dolfinx or petsc4py is imported. Python runs
 # this file before any module of the package (`import fingertip_dolfinx.geometry.mesh` imports
@@ -72,18 +72,13 @@ _API = {name: module for module, names in _MODULES.items() for name in names}
 __all__ = sorted(_API)
 
 
+_exported, __dir__ = lazy_exports(__name__, _API)
+
+
 def __getattr__(name: str):
     if name == "__version__":  # read on first use: `import fingertip_dolfinx` stays fast
         from .datafiles import package_version
 
         globals()[name] = package_version()
         return globals()[name]
-    if name not in _API:
-        raise AttributeError(f"module 'fingertip_dolfinx' has no attribute {name!r}")
-    value = getattr(import_module(f".{_API[name]}", __name__), name)
-    globals()[name] = value  # later look-ups skip this function
-    return value
-
-
-def __dir__():
-    return sorted(set(globals()) | set(__all__))
+    return _exported(name)

@@ -16,7 +16,7 @@ The names below are imported from their module on first use, so that importing
 `fingertip_dolfinx.stepping.options` (as scene.py does) loads no PETSc.
 """
 
-from importlib import import_module
+from ..lazy import lazy_exports
 
 #: Public name -> the module of this package that defines it.
 _API = {
@@ -40,13 +40,4 @@ _API = {
 __all__ = sorted(_API)
 
 
-def __getattr__(name: str):
-    if name not in _API:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(import_module(f".{_API[name]}", __name__), name)
-    globals()[name] = value  # later look-ups skip this function
-    return value
-
-
-def __dir__():
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, _API)
