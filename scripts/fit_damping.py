@@ -120,16 +120,18 @@ def plot(path: Path, eta0: float, band) -> None:
     f = np.logspace(0, 3, 300)
     fig = Figure(figsize=(6.4, 5.6))
     top, bottom = fig.subplots(2, 1, sharex=True)
+    lowest = eta0
     for name in ("wu2004", "fast-relaxation", "damped-fingerpad"):
         tissues = load_materials(name)
         prony = tissues.skin_prony
         G = modulus(prony.g, prony.tau, f)
         top.loglog(f, G.imag / G.real, lw=1.2, label=name)
+        lowest = min(lowest, float(np.min(G.imag / G.real)))
         bottom.loglog(f, np.abs(G) * tissues.skin.mu[0] / PAPER_MU[0], lw=1.2)
     top.loglog(band, [eta0, eta0], "k--", lw=1, label=f"target {eta0:.3f} (estimate)")
     top.set_ylabel("skin loss tangent")
-    top.set_ylim(1e-4, 2)
-    top.legend(fontsize=7, loc="lower right")
+    top.set_ylim(lowest / 2, 2)  # every curve whole, the paper's nearly elastic skin too
+    top.legend(fontsize=7, loc="lower left")
     bottom.set_ylabel("skin |μ G*| / μ (Wu 2004)")
     bottom.yaxis.set_major_formatter(ScalarFormatter())
     bottom.yaxis.set_minor_formatter(ScalarFormatter())
