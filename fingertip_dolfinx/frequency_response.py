@@ -60,7 +60,7 @@ from .afferents.receptors import (
     pressure_sampling,
 )
 from .afferents.vibrotactile import plot_threshold_curves, vibration_thresholds
-from .errors import InputError
+from .errors import InputError, on_root
 from .geometry.mesh import build_mesh
 from .harmonic import HarmonicSolver, complex_modulus, linearise, press
 from .harmonic_options import HarmonicOptions, parse_frequencies
@@ -226,17 +226,15 @@ def run_frequency_response(scene: Scene, out: str | Path, *, frequencies=None,
                                             freqs, out, comm, show)
     finally:
         solver.close()
-    curves = None
-    if comm.rank == 0:
-        curves = afferent_thresholds(population, sites, freqs, transfers, pressed_sites,
-                                     out / "thresholds.csv")
-        show(f"thresholds of {len(sites)} sites at {len(freqs)} frequencies: thresholds.csv")
+    curves = on_root(comm, lambda: afferent_thresholds(population, sites, freqs, transfers,
+                                                       pressed_sites, out / "thresholds.csv"))
+    show(f"thresholds of {len(sites)} sites at {len(freqs)} frequencies: thresholds.csv")
     summary = _summary(scene, fm, dofs, pressed, solver, rows, options, comm,
                        wallclock.perf_counter() - started)
     write_json(out / "summary.json", summary, comm)
-    if comm.rank == 0 and scene.outputs.pictures:
-        _figures(rows, site_rows, curves, population, scene, options, pressing, summary, out)
-    comm.barrier()  # every file is written when any rank returns (rank 0 draws)
+    if scene.outputs.pictures:  # every file is written when any rank returns (rank 0 draws)
+        on_root(comm, lambda: _figures(rows, site_rows, curves, population, scene, options,
+                                       pressing, summary, out))
     return summary
 
 

@@ -37,7 +37,7 @@ from .afferents.receptors import (
     surface_sites,
     write_spike_files,
 )
-from .errors import ConvergenceError, InputError, RunInterrupted
+from .errors import ConvergenceError, InputError, RunInterrupted, on_root
 from .geometry.fingertip3d import Fingertip3D
 from .geometry.mesh import build_mesh, write_xdmf
 from .geometry.mesh3d import build_mesh3d
@@ -419,29 +419,32 @@ class Run:
         self.fields.close()
         self.stepper.close()
         self.comm.barrier()
-        summary = None
-        if self.comm.rank == 0:
-            afferents = None if self.receptors is None else write_spike_files(
-                self.out, self.receptors.population, self.receptors.sites)
-            summary = run_summary(self.out, scene_record(self.scene), self.fm.report, self.dofs,
-                                  self.comm.size, converged=converged, failure=failure,
-                                  wall=wall, output_times=self.scene.output_times,
-                                  mirror_factor=self.problem.mirror_factor, status=status)
-            if self.scene.outputs.pictures:
-                with whole_files(self.out, "figures", MPI.COMM_SELF) as folder:
-                    _figures(self.out, self.scene.title, folder)
-                    if afferents is not None:
-                        plot_population(afferents, self.scene.section.outer,
-                                        folder / "population.png", self.scene.title)
-                    if self.three_d:
-                        _figures_3d(self.out, self.scene.title, folder)
-        summary = self.comm.bcast(summary, root=0)
+        summary = on_root(self.comm, lambda: self._summary_and_figures(converged, failure, wall,
+                                                                       status))
         write_json(self.out / "summary.json", summary, self.comm)
         peak = summary.get("peak_force_N", summary.get("peak_force_N_per_mm"))
         if converged and peak is not None and not peak > 0:
             warnings.warn(f"{self.scene.name}: the indenters never pressed on the skin (peak "
                           f"force {peak:g}).", NoContactWarning,
                           stacklevel=2)
+        return summary
+
+    def _summary_and_figures(self, converged, failure, wall, status) -> dict:
+        """On rank 0: the spike files, the summary's record and the figures."""
+        afferents = None if self.receptors is None else write_spike_files(
+            self.out, self.receptors.population, self.receptors.sites)
+        summary = run_summary(self.out, scene_record(self.scene), self.fm.report, self.dofs,
+                              self.comm.size, converged=converged, failure=failure,
+                              wall=wall, output_times=self.scene.output_times,
+                              mirror_factor=self.problem.mirror_factor, status=status)
+        if self.scene.outputs.pictures:
+            with whole_files(self.out, "figures", MPI.COMM_SELF) as folder:
+                _figures(self.out, self.scene.title, folder)
+                if afferents is not None:
+                    plot_population(afferents, self.scene.section.outer,
+                                    folder / "population.png", self.scene.title)
+                if self.three_d:
+                    _figures_3d(self.out, self.scene.title, folder)
         return summary
 
 

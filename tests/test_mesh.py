@@ -179,3 +179,20 @@ def test_xdmf_round_trip_keeps_the_tags(comm, shared_tmp_path):
             count = [comm.allreduce(len(owned(m, t.dim, t.find(tag))), op=MPI.SUM)
                      for m, t in ((fm, a), (back, b))]
             assert count[0] == count[1]
+
+
+@pytest.mark.mpi
+def test_a_meshing_failure_on_rank_zero_stops_every_rank(shared_tmp_path, comm):
+    """gmsh runs on rank 0 alone; an unreadable size map fails there, and the other ranks must
+    stop too instead of waiting in the mesh's distribution (the test would hang)."""
+    from fingertip_dolfinx.errors import RootRankError
+
+    broken = shared_tmp_path / "size_map.npz"
+    if comm.rank == 0:
+        broken.write_text("not a size map")
+    comm.barrier()
+    s = Section()
+    section = dataclasses.replace(s, mesh=dataclasses.replace(s.mesh, size_map=str(broken)))
+    with pytest.raises(Exception) as raised:
+        build_mesh(section, comm)
+    assert (comm.rank == 0) != isinstance(raised.value, RootRankError)

@@ -27,6 +27,7 @@ from dolfinx import fem, io
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
+from ..errors import on_root
 from .section import Section
 
 CELL_TAGS = {"skin": 1, "subcutaneous": 2, "bone": 3, "nail": 4}
@@ -158,15 +159,19 @@ def build_mesh(
         The distributed mesh with its cell (region) and facet (boundary) tags.
     """
     say = progress if progress is not None and comm.rank == 0 else (lambda message: None)
-    if size is None and section.mesh.size_map and comm.rank == 0:
-        size = SizeMap.load(section.mesh.size_map)
+
+    def generate():  # on rank 0; a failure there stops every rank (on_root)
+        size_map = SizeMap.load(section.mesh.size_map) if size is None and \
+            section.mesh.size_map else size
+        return _generate(section, say, size_map)
+
     with gmsh_model() if comm.rank == 0 else contextlib.nullcontext():
-        report = _generate(section, say, size) if comm.rank == 0 else None
+        report = on_root(comm, generate)
         say("distributing the mesh")
         data = io.gmsh.model_to_mesh(gmsh.model, comm, 0, gdim=2)
     data.cell_tags.name, data.facet_tags.name = "cell_tags", "facet_tags"
     names = {name: group.tag for name, group in data.physical_groups.items()}
-    return FingertipMesh(data.mesh, data.cell_tags, data.facet_tags, names, comm.bcast(report))
+    return FingertipMesh(data.mesh, data.cell_tags, data.facet_tags, names, report)
 
 
 @contextlib.contextmanager

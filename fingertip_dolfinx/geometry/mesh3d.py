@@ -38,6 +38,7 @@ import numpy as np
 from dolfinx import io
 from mpi4py import MPI
 
+from ..errors import on_root
 from .fingertip3d import Fingertip3D, ellipsoid_distance
 from .mesh import (
     CELL_TAGS,
@@ -85,12 +86,12 @@ def build_mesh3d(tip: Fingertip3D, comm: MPI.Comm = MPI.COMM_WORLD,
     """
     say = progress if progress is not None and comm.rank == 0 else (lambda message: None)
     with gmsh_model() if comm.rank == 0 else contextlib.nullcontext():
-        report = _generate(tip, say) if comm.rank == 0 else None
+        report = on_root(comm, lambda: _generate(tip, say))  # a failure stops every rank
         say("distributing the mesh")
         data = io.gmsh.model_to_mesh(gmsh.model, comm, 0, gdim=3)
     data.cell_tags.name, data.facet_tags.name = "cell_tags", "facet_tags"
     names = {name: group.tag for name, group in data.physical_groups.items()}
-    return FingertipMesh(data.mesh, data.cell_tags, data.facet_tags, names, comm.bcast(report))
+    return FingertipMesh(data.mesh, data.cell_tags, data.facet_tags, names, report)
 
 
 def _generate(tip: Fingertip3D, say: Callable[[str], None]) -> MeshReport:

@@ -46,7 +46,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from ..errors import ConvergenceError
+from ..errors import ConvergenceError, on_root
 from ..keys import KEY_OUTPUTS, KEYS, TIME_COLUMNS, check_scene, key_outputs
 
 TOL = 0.01  # "1 % on every key output"
@@ -340,10 +340,7 @@ def run_accuracy_study(scene_name: str, out: Path, *, levels: int = 3, coarse: b
               "reference": references["scene"], "references": references,
               "cheapest_1pct": best, "sentence": _sentence(best, rows, scene_name),
               "notes": notes, "adaptive": adaptive}
-    if comm.rank == 0:
-        out.mkdir(parents=True, exist_ok=True)
-        _write(result, out)
-    comm.barrier()
+    on_root(comm, lambda: _write(result, out))  # rank 0 writes; a failure stops every rank
     return result
 
 
@@ -617,6 +614,7 @@ def _fmt(v, spec=".3g"):
 
 def _write(result: dict, out: Path):
     """accuracy.csv, accuracy.json, accuracy.md and accuracy.png of `result` into `out`."""
+    out.mkdir(parents=True, exist_ok=True)
     with (out / "accuracy.csv").open("w", newline="") as f:
         writer = csv.DictWriter(f, fieldnames=CSV_COLUMNS, extrasaction="ignore")
         writer.writeheader()

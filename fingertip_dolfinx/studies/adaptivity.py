@@ -84,7 +84,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from ..errors import ConvergenceError, InputError
+from ..errors import ConvergenceError, InputError, on_root
 from ..geometry.mesh import SIZE_GROWTH, SizeMap
 from ..keys import DEFLECTION_POINTS, KEY_OUTPUTS, KEYS, check_scene, key_outputs, read_key
 from ..post import depth_curve
@@ -537,8 +537,8 @@ def check_time(scene, final: dict, out: Path, options: AdaptOptions, say, comm) 
         summaries.append(run_scene(dataclasses.replace(scene, steps=steps), run_dir,
                                    progress=False, comm=comm))
         dirs.append(run_dir)
-        values = key_outputs(run_dir) if comm.rank == 0 else None
-        return comm.bcast({key: values[key] for key in KEYS} if values else None, root=0)
+        values = on_root(comm, lambda: key_outputs(run_dir))
+        return {key: values[key] for key in KEYS} if values else None
 
     check = verify_time(run, scene.steps, options.time_tol, max_runs=options.max_time_runs)
     for entry, run_dir, summary in zip(check["runs"], dirs, [None, *summaries]):
@@ -634,13 +634,15 @@ def _record_level(k: int, run_dir: Path, summary: dict, t0: float, scene, option
                   levels: list, data: list, comm: MPI.Comm) -> dict:
     """Level k's record (`_level_record`, with its estimates for k > 0), made on rank 0 (which
     appends the level's `level_data` to `data`) and sent to every rank."""
-    record = None
-    if comm.rank == 0:
+
+    def record() -> dict:
         data.append(level_data(run_dir, scene, options))
-        record = _level_record(k, run_dir, summary, time.perf_counter() - t0, data)
+        made = _level_record(k, run_dir, summary, time.perf_counter() - t0, data)
         if k > 0:
-            record["estimates"] = _estimates(levels, record, options)
-    return comm.bcast(record, root=0)
+            made["estimates"] = _estimates(levels, made, options)
+        return made
+
+    return on_root(comm, record)
 
 
 def _say_level(say, record: dict) -> None:
@@ -669,13 +671,15 @@ def _plan_level(k: int, levels: list, data: list, options: AdaptOptions, floor: 
                 out: Path, comm: MPI.Comm) -> dict:
     """Level k + 1's plan (`_plan_next`), made on rank 0, which writes its size map to
     out/level-<k+1>/size_map.npz; every rank gets the plan (without the sizes)."""
-    plan = None
-    if comm.rank == 0:
-        plan = _plan_next(k, levels, data, options, floor)
+
+    def plan() -> dict:
+        made = _plan_next(k, levels, data, options, floor)
         (out / f"level-{k + 1}").mkdir(parents=True, exist_ok=True)
-        SizeMap(data[-1]["centroids"], plan.pop("sizes")).save(
+        SizeMap(data[-1]["centroids"], made.pop("sizes")).save(
             out / f"level-{k + 1}" / "size_map.npz")
-    return comm.bcast(plan, root=0)
+        return made
+
+    return on_root(comm, plan)
 
 
 def _refinement_stopped(plan: dict, options: AdaptOptions) -> str:

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from ..errors import InputError
+from ..errors import InputError, on_root
 from ..keys import KEY_OUTPUTS, KEYS, TIME_COLUMNS, check_scene, key_outputs
 from ..outputs import read_csv, write_json
 
@@ -44,15 +44,17 @@ def parameter_sweep(scene_name: str, key: str, out: Path, *, values: Sequence | 
     for scene, _ in jobs:  # before any run: every run must write what the key outputs read
         check_scene(scene, f"sweep {scene_name} --param {key}")
     run_side_by_side(jobs, progress=progress)
-    result = None
-    if MPI.COMM_WORLD.rank == 0:
+
+    def tabulate() -> dict:  # on rank 0: the table, its files and its figure
         rows = [{"label": label, "value": v, **key_outputs(out / label)}
                 for label, v in zip(labels, settings)]
         result = {"scene": scene_name, "key": key, "factors": list(factors or []), "rows": rows,
                   "key_outputs": {k.column: k.record() for k in KEY_OUTPUTS}}
         _write(rows, out)
         _plot(out, result)
-    result = MPI.COMM_WORLD.bcast(result, root=0)
+        return result
+
+    result = on_root(MPI.COMM_WORLD, tabulate)
     write_json(out / "summary.json", result, MPI.COMM_WORLD)
     return result
 

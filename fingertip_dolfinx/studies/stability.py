@@ -39,7 +39,13 @@ import ufl
 from dolfinx import fem, mesh
 from mpi4py import MPI
 
-from ..errors import CompactionError, ConvergenceError, FingertipError, MaterialInstabilityError
+from ..errors import (
+    CompactionError,
+    ConvergenceError,
+    FingertipError,
+    MaterialInstabilityError,
+    on_root,
+)
 from ..loading import PiecewiseLinear
 from ..physics import materials as mat
 from ..physics.drucker import check_state, drucker_check
@@ -682,33 +688,37 @@ def _figure_time_step(out: Path, r4: list[dict], profiles4: dict) -> Path:
     return path
 
 
+def _run_cases(out: Path, coarse: bool) -> list[dict]:
+    """The five cases, one after the other, and their files (on one rank)."""
+    rows: list[dict] = []
+    out.mkdir(parents=True, exist_ok=True)
+    profiles1, profiles4, runtimes = {}, {}, {}
+    cases = [
+        ("1", lambda: p1p1_vs_taylor_hood(coarse, profiles1)),
+        ("2", lambda: nitsche_parameters(coarse)),
+        ("3", lambda: principal_stretch_tangent()),
+        ("4", lambda: poroelastic_time_step(coarse, profiles4)),
+        ("5", lambda: compaction_and_drucker(coarse)),
+    ]
+    for name, run in cases:
+        started = time.perf_counter()
+        try:
+            rows += run()
+        except Exception as e:  # record, don't hide: the other cases still run
+            rows.append({"case": name, "method": "(case failed)", "parameter": "",
+                         "value": "", "reason": f"{type(e).__name__}: {e}"})
+        runtimes[name] = time.perf_counter() - started
+    write_csv(rows, out / "stability.csv")
+    write_markdown(rows, out / "stability.md", runtimes)
+    _figures(out, rows, profiles1, profiles4)
+    return rows
+
+
 def run_stability_study(out: Path, *, coarse: bool = True, comm=MPI.COMM_WORLD) -> list[dict]:
     """Run the five cases (serially, on rank 0 of `comm`), write DIR/stability.csv,
     DIR/stability.md and PNG figures; return the rows (on every rank)."""
     out = Path(out)
-    rows: list[dict] = []
-    if comm.rank == 0:
-        out.mkdir(parents=True, exist_ok=True)
-        profiles1, profiles4, runtimes = {}, {}, {}
-        cases = [
-            ("1", lambda: p1p1_vs_taylor_hood(coarse, profiles1)),
-            ("2", lambda: nitsche_parameters(coarse)),
-            ("3", lambda: principal_stretch_tangent()),
-            ("4", lambda: poroelastic_time_step(coarse, profiles4)),
-            ("5", lambda: compaction_and_drucker(coarse)),
-        ]
-        for name, run in cases:
-            started = time.perf_counter()
-            try:
-                rows += run()
-            except Exception as e:  # record, don't hide: the other cases still run
-                rows.append({"case": name, "method": "(case failed)", "parameter": "",
-                             "value": "", "reason": f"{type(e).__name__}: {e}"})
-            runtimes[name] = time.perf_counter() - started
-        write_csv(rows, out / "stability.csv")
-        write_markdown(rows, out / "stability.md", runtimes)
-        _figures(out, rows, profiles1, profiles4)
-    return comm.bcast(rows, root=0)
+    return on_root(comm, lambda: _run_cases(out, coarse))  # a failure stops every rank
 
 
 def main(argv: list[str] | None = None) -> int:

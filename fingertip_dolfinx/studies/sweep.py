@@ -36,11 +36,13 @@ what this criterion can resolve (on the coarse default run: one peak at d = 1.2 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
 
+from ..errors import on_root
 from ..outputs import read_csv, write_json
 from ..plotting.figures import plot_spacing_profiles
 
@@ -163,39 +165,43 @@ def run_sweep(scene_name: str, spacings, out: Path, overrides=(), progress=True,
     run_side_by_side([(scene, out / f"d{d:g}") for d, scene in zip(spacings, scenes)],
                      progress=progress)
 
-    result = None
-    if world.rank == 0:
-        scene = scenes[0]
-        t, depth_mm = scene.output_times[-1], scene.depths[0]
-        table = {q: [] for q in QUANTITIES}
-        profiles = {d: read_csv(out / f"d{d:g}" / "depth_profiles.csv") for d in spacings}
-        for d in spacings:
-            v = normalized_variation(profiles[d], d, t, depth_mm,
-                                     getattr(scene.indenters[0], "width", 1.0))
-            for q in QUANTITIES:
-                table[q].append(v[q])
-        plot_spacing_profiles(profiles, out / "profiles_by_spacing.png", t, depth_mm,
-                              title=f"{scene.name}: two bars at spacing d")
-        with (out / "normalized_variation.csv").open("w") as f:
-            f.write("spacing_mm," + ",".join(QUANTITIES) + "\n")
-            for i, d in enumerate(spacings):
-                f.write(f"{d:g}," + ",".join(f"{table[q][i]:.8g}" for q in QUANTITIES) + "\n")
-        result = {
-            "scene": scene.name,
-            "spacings_mm": list(spacings),
-            "time_s": t,
-            "depth_mm": depth_mm,
-            "normalized_variation": table,
-            "threshold_mm": threshold(np.array(spacings), table),
-            "threshold_criterion": CRITERION,
-        }
-        if all((out / f"d{d:g}" / "receptors.csv").exists() for d in spacings):
-            ratios = [dip_ratio(population_profile(out / f"d{d:g}", t)[1]) for d in spacings]
-            result["population"] = {"dip_ratio": ratios, "criterion": POPULATION_CRITERION,
-                                    **population_threshold(spacings, ratios)}
-        _plot(np.array(spacings), table, out / "normalized_variation.png", result["threshold_mm"])
-    result = world.bcast(result, root=0)
+    result = on_root(world, lambda: _tabulate(scenes, spacings, out))  # rank 0 reads, writes
     write_json(out / "summary.json", result, world)
+    return result
+
+
+def _tabulate(scenes: list, spacings: Sequence[float], out: Path) -> dict:
+    """The sweep's table from its runs' files (on one rank): the normalized variations, their
+    strain threshold, the SA1 population's where the runs sampled it, and the files."""
+    scene = scenes[0]
+    t, depth_mm = scene.output_times[-1], scene.depths[0]
+    table = {q: [] for q in QUANTITIES}
+    profiles = {d: read_csv(out / f"d{d:g}" / "depth_profiles.csv") for d in spacings}
+    for d in spacings:
+        v = normalized_variation(profiles[d], d, t, depth_mm,
+                                 getattr(scene.indenters[0], "width", 1.0))
+        for q in QUANTITIES:
+            table[q].append(v[q])
+    plot_spacing_profiles(profiles, out / "profiles_by_spacing.png", t, depth_mm,
+                          title=f"{scene.name}: two bars at spacing d")
+    with (out / "normalized_variation.csv").open("w") as f:
+        f.write("spacing_mm," + ",".join(QUANTITIES) + "\n")
+        for i, d in enumerate(spacings):
+            f.write(f"{d:g}," + ",".join(f"{table[q][i]:.8g}" for q in QUANTITIES) + "\n")
+    result = {
+        "scene": scene.name,
+        "spacings_mm": list(spacings),
+        "time_s": t,
+        "depth_mm": depth_mm,
+        "normalized_variation": table,
+        "threshold_mm": threshold(np.array(spacings), table),
+        "threshold_criterion": CRITERION,
+    }
+    if all((out / f"d{d:g}" / "receptors.csv").exists() for d in spacings):
+        ratios = [dip_ratio(population_profile(out / f"d{d:g}", t)[1]) for d in spacings]
+        result["population"] = {"dip_ratio": ratios, "criterion": POPULATION_CRITERION,
+                                **population_threshold(spacings, ratios)}
+    _plot(np.array(spacings), table, out / "normalized_variation.png", result["threshold_mm"])
     return result
 
 
