@@ -262,7 +262,8 @@ class NitscheContact:
         bs = V.dofmap.index_map_bs  # = gdim
         x = V.tabulate_dof_coordinates()[nodes, :bs] + u.x.array.reshape(-1, bs)[nodes]
         depth = max(
-            (float(np.max(-o.indenter.signed_distance_np(o.relative_np(x), o.y_tip.value)[0], initial=0.0))
+            (float(np.max(-o.indenter.signed_distance_np(o.relative_np(x), o.y_tip.value)[0],
+                          initial=0.0))
              for o in self.obstacles),
         )
         return V.mesh.comm.allreduce(depth, op=MPI.MAX)

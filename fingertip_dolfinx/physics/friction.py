@@ -57,7 +57,7 @@ def friction_coefficients(mu, count: int, where: str = "indenter.friction") -> t
         if isinstance(value, bool) or not isinstance(value, int | float) or not (
                 np.isfinite(value) and value >= 0):
             raise InputError(where, f"a friction coefficient must be a number >= 0, got "
-                             f"{value!r}.", "use 0 (frictionless) or a typical 0.3-1.5.")
+                             f"{value!r}.", "use 0 (frictionless) or a measured value, typically 0.4-1.")
     return tuple(float(v) for v in values)
 
 
@@ -70,9 +70,16 @@ def project_on_ball(q, radius):
 class CoulombFriction:
     """Coulomb friction for the indenters of `contact`, μ per indenter (module docstring).
 
-    Add `residual(v)` to the contact's; call `mark_accepted()` after every accepted step (and
-    once before the first, with the body and the indenters at their start). An indenter moved
-    along x needs an `x_tip` Constant (`Obstacle.at(..., x_tip=0.0)`).
+    Add `residual(v)` to the contact's; call `mark_accepted()` after every accepted step (it
+    runs once here, with the body and the indenters at their start). Measure a step (forces,
+    traction, stick margin) before accepting it: they depend on the step's slip. An indenter
+    moved along x needs an `x_tip` Constant (`Obstacle.at(..., x_tip=0.0)`).
+
+    γ_t = `gamma_ratio` × the contact's γ. The method is consistent for any γ_t > 0; the
+    contact's γ = γ0 M/h is scaled by the P-wave modulus M, which for nearly incompressible
+    tissue is ~50 times the shear modulus G that sets the surface's tangential stiffness:
+    G/M brings γ_t to γ0 G/h (on the Cattaneo–Mindlin block, ν = 0.49, a/2.5 elements: 15–28
+    Newton iterations per tangential step; with γ_t = γ, 40–45 and a failed line search).
     """
 
     def __init__(self, contact: NitscheContact, mu, *, gamma_ratio: float = 1.0):
@@ -86,15 +93,8 @@ class CoulombFriction:
         #: Each indenter's (x, y) at the last accepted step.
         self._previous = [fem.Constant(domain, np.zeros(2)) for _ in contact.obstacles]
         self._forces, self.trial = [], []
-        for i, obstacle in enumerate(contact.obstacles):
-            n, tn = contact._normals[i], contact._tn[i]
-            moved = ufl.as_vector([_coordinate(obstacle, k) - self._previous[i][k]
-                                   if k < 2 else 0.0 for k in range(gdim)])
-            tangential = ufl.Identity(gdim) - ufl.outer(n, n)
-            slip = tangential * (u - self.u_prev - moved)
-            t_t = tangential * contact.traction if contact.method == "nitsche" else 0.0 * slip
-            q = t_t - self.gamma * slip
-            radius = self.mu[i] * contact._pressures[i]
+        for i in range(len(contact.obstacles)):
+            q, radius = self._trial(i, gdim)
             self._forces.append(project_on_ball(q, radius))
             self.trial.append(radius - ufl.sqrt(ufl.dot(q, q)))
         nearest = contact._nearest
@@ -104,6 +104,18 @@ class CoulombFriction:
         #: where it slips (or is free: there p = 0); its zero level is the stick zone's edge.
         self.stick_margin = sum(c * m for c, m in zip(nearest, self.trial))
         self.mark_accepted()
+
+    def _trial(self, i: int, gdim: int) -> tuple:
+        """Indenter i's q = t_t − γ Δs_t (UFL vector) and the ball's radius μ p."""
+        contact, obstacle = self.contact, self.contact.obstacles[i]
+        n = contact._normals[i]
+        moved = ufl.as_vector([_coordinate(obstacle, k) - self._previous[i][k] if k < 2 else 0.0
+                               for k in range(gdim)])
+        tangential = ufl.Identity(gdim) - ufl.outer(n, n)
+        slip = tangential * (contact.u - self.u_prev - moved)
+        # the penalty law has no traction estimate (t_n = 0 in the contact, t_t = 0 here)
+        t_t = tangential * contact.traction if contact.method == "nitsche" else 0.0 * slip
+        return t_t - self.gamma * slip, self.mu[i] * contact._pressures[i]
 
     def _term(self, i: int, v) -> ufl.Form:
         return -self.contact._nearest[i] * ufl.dot(self._forces[i], v) * self.contact.ds

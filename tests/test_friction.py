@@ -1,0 +1,112 @@
+"""Coulomb friction (physics/friction.py) against Cattaneo–Mindlin: a rigid cylinder pressed into
+a large elastic block, then dragged along it (`studies.problems.CattaneoMindlin`).
+
+Closed form (plane strain, Johnson §7.1): under P and a monotonic tangential load Q < μP the
+contact of Hertz half-width a sticks on |x| < c = a sqrt(1 − Q/(μP)); Q = μP is gross slip.
+"""
+
+from functools import cache
+
+import numpy as np
+import pytest
+import ufl
+from dolfinx import fem
+from mpi4py import MPI
+
+from fingertip_dolfinx.errors import InputError
+from fingertip_dolfinx.geometry.indenters import Cylinder
+from fingertip_dolfinx.physics.contact import NitscheContact, Obstacle
+from fingertip_dolfinx.physics.friction import CoulombFriction, friction_coefficients
+from fingertip_dolfinx.studies.problems import Hertz, newton_problem
+from fingertip_dolfinx.studies.problems.mindlin import CattaneoMindlin, drag, stick_halfwidth
+
+MINDLIN = CattaneoMindlin()  # E = 1 MPa, ν = 0.49, μ = 0.5, R = 1 mm, a ≈ 0.02 mm
+#: Cylinder shifts (mm): partial stick at Q/μP ≈ 0.44 and 0.87, gross slip at the last
+#: (measured: Q reaches μP near 1e-3 mm on this block).
+SHIFTS = (4e-4, 8e-4, 1.2e-3)
+
+
+@cache
+def dragged(n: float) -> tuple[dict, ...]:
+    """The press (2 steps) and the drag through SHIFTS on a mesh of a/n at the contact."""
+    return tuple(drag(MINDLIN, MINDLIN.a_target / n, SHIFTS, prefix=f"drag_{n}_".replace(".", "_")))
+
+
+def stick_errors(rows) -> np.ndarray:
+    """|c − c_theory|/a of the partial-stick steps."""
+    return np.array([abs(r["c"] - r["c_theory"]) / r["a"] for r in rows if 0.1 < r["ratio"] < 0.95])
+
+
+def test_coulomb_bound_holds_at_every_step_and_gross_slip_carries_mu_times_the_load():
+    rows = dragged(2.5)
+    for r in rows:  # pointwise |f| <= μp at the quadrature points that also integrate the forces
+        assert abs(r["Q"]) <= MINDLIN.mu * abs(r["P"]) * (1 + 1e-9), r
+    # Gross slip: |f| = μp everywhere in contact; Q/μP differs from 1 only by the surface's tilt
+    # under the cylinder, of order (a/R)² = 4e-4, and by the pressure's x-share.
+    assert rows[-1]["ratio"] == pytest.approx(1.0, abs=2e-3)
+    assert rows[-1]["c"] == 0.0
+
+
+def test_stick_zone_matches_cattaneo_mindlin_on_a_coarse_mesh():
+    rows = dragged(2.5)
+    errors = stick_errors(rows)
+    assert len(errors) == 2, [r["ratio"] for r in rows]
+    # The stick edge is an active-set edge on P2 elements of a/2.5 at the contact, as the contact
+    # edge of Hertz is: located to within a quarter element, h/4 = 0.1 a (measured 0.07 a).
+    assert errors.max() < 0.1, errors
+    # Pressing with friction: ν = 0.49 (β ≈ 0.02) locks in almost no shear, all of it sticks.
+    press = rows[1]
+    assert abs(press["ratio"]) < 1e-2 and press["c"] == pytest.approx(press["a"], rel=0.1)
+
+
+@pytest.mark.slow
+def test_stick_zone_converges_with_the_mesh():
+    errors = [stick_errors(dragged(n)).max() for n in (2.5, 5, 10)]
+    assert errors[2] < errors[0] and errors[2] < 0.03, errors
+
+
+def _hertz_forces(friction_mu: float | None) -> tuple[float, np.ndarray]:
+    """The Hertz half block pressed in 2 steps: the cylinder's force and the displacement; with
+    `friction_mu`, its obstacle has an x_tip Constant and a CoulombFriction of that μ is added."""
+    hertz = Hertz()
+    domain, tags = hertz.mesh(hertz.a_target / 2.5, MPI.COMM_SELF)
+    V = fem.functionspace(domain, ("Lagrange", 2, (2,)))
+    u, v = fem.Function(V), ufl.TestFunction(V)
+    P = hertz.stress(u)
+
+    x_tip = None if friction_mu is None else 0.0
+    obstacle = Obstacle.at(domain, Cylinder(radius=hertz.R), y_tip=0.0, x_tip=x_tip)
+    ds = ufl.Measure("ds", domain, subdomain_data=tags)
+    contact = NitscheContact(u, P, ds(hertz.BOTTOM), [obstacle], modulus=hertz.modulus)
+    residual = ufl.inner(P, ufl.grad(v)) * ufl.dx + contact.residual(v)
+    if friction_mu is not None:
+        residual += CoulombFriction(contact, friction_mu).residual(v)
+    top = fem.locate_dofs_topological(V, 1, tags.find(hertz.TOP))
+    side = fem.locate_dofs_topological(V.sub(0), 1, tags.find(hertz.SYMMETRY))
+    bcs = [fem.dirichletbc(np.zeros(2), top, V), fem.dirichletbc(0.0, side, V.sub(0))]
+    problem = newton_problem(residual, u, bcs, f"unchanged_{friction_mu}_".replace(".", "_"))
+    for k in (1, 2):
+        obstacle.y_tip.value = hertz.depth * k / 2
+        problem.solve()
+        assert problem.solver.getConvergedReason() > 0
+    return float(contact.forces()[0]), u.x.array.copy()
+
+
+def test_zero_friction_and_a_resting_tangential_constant_change_nothing_to_the_last_digit():
+    force, u = _hertz_forces(None)
+    force_mu0, u_mu0 = _hertz_forces(0.0)
+    assert force_mu0 == force
+    assert np.array_equal(u_mu0, u)
+
+
+def test_stick_halfwidth_interpolates_the_zero_crossings():
+    x = np.linspace(-2.0, 2.0, 9)
+    margin = 1.0 - np.abs(x)  # sticks on |x| < 1
+    assert stick_halfwidth(x, margin) == pytest.approx(1.0)
+    assert stick_halfwidth(x, -np.ones_like(x)) == 0.0
+
+
+@pytest.mark.parametrize("mu, count", [(-0.1, 1), (float("nan"), 1), ((0.5, 0.5), 1), (True, 1)])
+def test_bad_friction_coefficients_are_refused(mu, count):
+    with pytest.raises(InputError, match="friction"):
+        friction_coefficients(mu, count)
