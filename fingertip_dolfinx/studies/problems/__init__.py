@@ -65,11 +65,12 @@ from .vibrating import VibratingLayer, driven_layer, driven_layer_force
 from .wiring import QUADRATURE_DEGREE, graded, newton_problem, support_reaction
 
 __all__ = [
-    "CattaneoMindlin", "ConfinedBlock", "ConfinedRelaxation", "Hertz", "HertzBlock", "HertzSphere",
-    "HertzSphereBlock", "LAYERS", "PlatenRelaxation", "PlatenState", "QUADRATURE_DEGREE",
-    "RelaxationRun", "Terzaghi", "UnconfinedBlock", "UnconfinedRelaxation",
-    "VibratingLayer", "confined_drained_state", "confined_drained_stress",
-    "confined_modulus", "contact_edge", "driven_layer", "driven_layer_force", "graded",
-    "layered_block", "MindlinBlock", "drag", "newton_problem", "prony_ramp_integral", "run_relaxation",
-    "stick_halfwidth", "support_reaction", "unconfined_drained_state", "unconfined_undrained_state",
+    "CattaneoMindlin", "ConfinedBlock", "ConfinedRelaxation", "Hertz", "HertzBlock",
+    "HertzSphere", "HertzSphereBlock", "LAYERS", "MindlinBlock", "PlatenRelaxation",
+    "PlatenState", "QUADRATURE_DEGREE", "RelaxationRun", "Terzaghi", "UnconfinedBlock",
+    "UnconfinedRelaxation", "VibratingLayer", "confined_drained_state",
+    "confined_drained_stress", "confined_modulus", "contact_edge", "drag", "driven_layer",
+    "driven_layer_force", "graded", "layered_block", "newton_problem", "prony_ramp_integral",
+    "run_relaxation", "stick_halfwidth", "support_reaction", "unconfined_drained_state",
+    "unconfined_undrained_state",
 ]
