@@ -57,7 +57,8 @@ def friction_coefficients(mu, count: int, where: str = "indenter.friction") -> t
         if isinstance(value, bool) or not isinstance(value, int | float) or not (
                 np.isfinite(value) and value >= 0):
             raise InputError(where, f"a friction coefficient must be a number >= 0, got "
-                             f"{value!r}.", "use 0 (frictionless) or a measured value, typically 0.4-1.")
+                             f"{value!r}.",
+                             "use 0 (frictionless) or a measured value, typically 0.4-1.")
     return tuple(float(v) for v in values)
 
 
