@@ -110,3 +110,17 @@ def test_stick_halfwidth_interpolates_the_zero_crossings():
 def test_bad_friction_coefficients_are_refused(mu, count):
     with pytest.raises(InputError, match="friction"):
         friction_coefficients(mu, count)
+
+
+def test_cattaneo_mindlin_traction_carries_the_tangential_force():
+    # ∫ q dx = μP − μP c²/a² = Q: the closed form's two ellipses are consistent with c(Q).
+    P, Q = 1e-3, 0.6 * MINDLIN.mu * 1e-3
+    a, _ = MINDLIN.theory(P)
+    x = np.linspace(-a, a, 200001)
+    q = MINDLIN.traction_theory(x, P, Q)
+    assert np.trapezoid(q, x) == pytest.approx(Q, rel=1e-4)
+    c = MINDLIN.stick_theory(P, Q)
+    outside = np.abs(x) > c  # the slip annulus carries μp
+    _, p0 = MINDLIN.theory(P)
+    p = p0 * np.sqrt(np.clip(1 - (x / a) ** 2, 0, None))
+    assert np.allclose(q[outside], MINDLIN.mu * p[outside], atol=1e-12)

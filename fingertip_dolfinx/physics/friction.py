@@ -4,8 +4,9 @@ Per indenter, with the contact's normal n (from the indenter into the body), pre
 p = [t_n − γ g]_+ and the nominal traction t = P N, the tangential traction the indenter puts
 on the body, f, obeys Coulomb's law: |f| ≤ μ p; where |f| < μ p the surface sticks to the
 indenter, and where it slips f = −μ p s/|s| opposes the slip s. For any γ > 0 this is
-(Chouly, Hild & Renard, Math. Comp. 84, 2015, 1089–1112; Chouly, Hild, Lleras & Renard, IMA
-J. Numer. Anal. 38, 2018, 921–954, the quasi-static incremental form)
+Alart & Curnier's (CMAME 92, 1991) augmented law; in Nitsche's form Chouly (J. Math. Anal.
+Appl. 411, 2014, 329–339) for Tresca friction, Mlika, Renard & Chouly (CMAME 325, 2017,
+265–288) for Coulomb friction at finite strain; here in the quasi-static incremental form
 
     f = P_B(μ p)(t_t − γ Δs_t),
 
