@@ -15,6 +15,7 @@ from mpi4py import MPI
 
 from fingertip_dolfinx.errors import InputError
 from fingertip_dolfinx.geometry.indenters import Cylinder
+from fingertip_dolfinx.loading import LoadHistory, PiecewiseLinear, RampHold, TangentialPath
 from fingertip_dolfinx.physics.contact import NitscheContact, Obstacle
 from fingertip_dolfinx.physics.friction import CoulombFriction, friction_coefficients
 from fingertip_dolfinx.studies.problems import Hertz, newton_problem
@@ -124,3 +125,57 @@ def test_cattaneo_mindlin_traction_carries_the_tangential_force():
     _, p0 = MINDLIN.theory(P)
     p = p0 * np.sqrt(np.clip(1 - (x / a) ** 2, 0, None))
     assert np.allclose(q[outside], MINDLIN.mu * p[outside], atol=1e-12)
+
+
+def test_a_tangential_path_presses_as_its_normal_protocol_and_moves_along_x():
+    normal = RampHold(depth=0.5, ramp_time=0.5, end_time=1.5)
+    path = TangentialPath(normal, PiecewiseLinear((0.0, 0.5, 1.2), (0.0, 0.0, 1.0)))
+    assert isinstance(path, LoadHistory)
+    for t in (0.0, 0.25, 0.5, 1.0, 1.5):
+        assert path(t) == normal(t)
+    assert path.end_time == 1.5 and path.deepest == 0.5
+    assert path.tangential_at(0.5) == 0.0 and path.tangential_at(0.85) == pytest.approx(0.5)
+    assert path.tangential_at(1.5) == 1.0  # held after its last point
+    assert path.breakpoints == (0.0, 0.5, 1.2, 1.5)  # the stepper lands on both parts' kinks
+    with pytest.raises(InputError, match="after the protocol's end"):
+        TangentialPath(normal, PiecewiseLinear((0.0, 2.0), (0.0, 1.0)))
+
+
+def shear_run(mu: float) -> list:
+    """A plate pressed 0.5 mm into the coarse 2D pulp in 0.5 s, then dragged 1 mm along x in
+    1 s (the stepper's own steps of <= 0.1 s)."""
+    import dataclasses
+
+    from fingertip_dolfinx.geometry.indenters import load_indenter
+    from fingertip_dolfinx.geometry.mesh import build_mesh
+    from fingertip_dolfinx.geometry.section import load_section
+    from fingertip_dolfinx.problem import FingertipProblem
+    from fingertip_dolfinx.stepping import StepOptions, TimeStepper
+
+    section = load_section("male-index")
+    section = dataclasses.replace(section, mesh=dataclasses.replace(
+        section.mesh, min_size=0.25, max_size=1.5, bone_size=2.0, refine_half_width=4.0,
+        refine_depth=1.0))
+    history = TangentialPath(RampHold(depth=0.5, ramp_time=0.5, end_time=1.5),
+                             PiecewiseLinear((0.0, 0.5, 1.5), (0.0, 0.0, 1.0)))
+    problem = FingertipProblem(build_mesh(section, MPI.COMM_WORLD), [load_indenter("plate")],
+                               history, friction=mu)
+    stepper = TimeStepper(problem, StepOptions(dt_initial=0.1, dt_max=0.1),
+                          prefix=f"shear_{mu}_".replace(".", "_"))
+    reports = stepper.run(history, history.end_time)
+    stepper.close()
+    return reports
+
+
+@pytest.mark.slow
+def test_a_plate_dragged_over_the_pulp_sticks_partly_then_slips_at_mu_times_the_load():
+    mu = 0.5
+    reports = shear_run(mu)
+    ratios = np.array([abs(r.diagnostics["tangential_force_N_per_mm"])
+                       / (mu * abs(r.diagnostics["force_N_per_mm"])) for r in reports])
+    assert np.all(ratios <= 1 + 1e-6), ratios.max()  # Coulomb's bound at every step
+    assert np.any((ratios > 0.1) & (ratios < 0.9))  # a partial-stick phase before gross slip
+    assert ratios[-1] == pytest.approx(1.0, abs=0.02)  # gross slip at the end
+    for r in reports:  # the friction's y-share counted: the support balances the indenter
+        d = r.diagnostics
+        assert d["force_N_per_mm"] == pytest.approx(d["reaction_N_per_mm"], rel=1e-5)

@@ -132,6 +132,15 @@ class CoulombFriction:
         for previous, obstacle in zip(self._previous, self.contact.obstacles):
             previous.value[:] = (_value(obstacle.x_tip), _value(obstacle.y_tip))
 
+    def advance(self) -> None:
+        """The time stepper's name for `mark_accepted` (friction is one of its histories)."""
+        self.mark_accepted()
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The live arrays of the last accepted state, by checkpoint name."""
+        arrays = {"friction_u_prev": self.u_prev.x.array}
+        return arrays | {f"friction_previous_{i}": c.value for i, c in enumerate(self._previous)}
+
     @cached_property
     def _force_forms(self) -> list[list[fem.Form]]:
         # Contact and friction residual tested with each rigid translation e_k: the force each
