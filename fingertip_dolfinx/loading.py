@@ -357,6 +357,10 @@ KINDS = {"ramp-hold": RampHold, "piecewise-linear": PiecewiseLinear, "sinusoid":
 def history_from_dict(data: dict, where: str = "protocol") -> LoadHistory:
     """Build a protocol from a scene file's `[protocol]` table (`kind` picks the class)."""
     data = dict(data)
+    tangential = data.pop("tangential", None)
+    if tangential is not None:  # the normal protocol, and the indenters' path along x
+        return TangentialPath(history_from_dict(data, where),
+                              _tangential(tangential, f"{where}.tangential"))
     kind = data.pop("kind", "ramp-hold")
     if kind not in KINDS:
         raise InputError(f"{where}.kind", f"unknown protocol {kind!r}.",
@@ -372,6 +376,16 @@ def history_from_dict(data: dict, where: str = "protocol") -> LoadHistory:
             raise InputError(f"{where}.{key}", f"must be a number or a list of numbers, got "
                              f"{value!r}.", "write a number.")
     return cls(**data)
+
+
+def _tangential(data, where: str) -> PiecewiseLinear:
+    """`[protocol.tangential]`: times (s) and values (mm along x) of a piecewise-linear path."""
+    check_keys(where, data, ["times", "values"], ["times", "values"])
+    for key, value in data.items():
+        if not isinstance(value, list | tuple) or not all(
+                isinstance(x, int | float) and not isinstance(x, bool) for x in value):
+            raise InputError(f"{where}.{key}", f"must be a list of numbers, got {value!r}.")
+    return PiecewiseLinear(tuple(data["times"]), tuple(data["values"]))
 
 
 def step_times(breakpoints: Sequence[float], t: float, dt: float, end_time: float) -> float:

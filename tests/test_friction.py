@@ -179,3 +179,32 @@ def test_a_plate_dragged_over_the_pulp_sticks_partly_then_slips_at_mu_times_the_
     for r in reports:  # the friction's y-share counted: the support balances the indenter
         d = r.diagnostics
         assert d["force_N_per_mm"] == pytest.approx(d["reaction_N_per_mm"], rel=1e-5)
+
+
+def test_friction_is_indenter_data_and_the_shear_scene_drags_a_plate():
+    from fingertip_dolfinx.geometry.indenters import make_indenter
+    from fingertip_dolfinx.loading import history_from_dict
+    from fingertip_dolfinx.scene import load_scene, scene_record
+
+    with pytest.raises(InputError, match="friction"):
+        make_indenter({"shape": "plate", "friction": -0.2})
+    scene = load_scene("shear")
+    assert scene.indenters[0].friction == 0.5
+    record = scene_record(scene)
+    assert record["indenters"][0]["friction"] == 0.5  # summary.json records μ
+    back = history_from_dict(dict(record["protocol"]))  # the record reads back
+    assert back.tangential_at(1.0) == scene.history.tangential_at(1.0) == 0.5
+    # a frictionless scene's record is as before: its runs still resume
+    assert "friction" not in scene_record(load_scene("1pt"))["indenters"][0]
+
+
+def test_a_resume_with_another_tangential_path_is_refused(tmp_path):
+    from fingertip_dolfinx.outputs import check_resume
+    from fingertip_dolfinx.scene import load_scene, scene_record
+
+    old = scene_record(load_scene("shear"))
+    new = scene_record(load_scene("shear", {"protocol": {"tangential": {
+        "times": [0.0, 0.5, 1.5], "values": [0.0, 0.0, 2.0]}}}))
+    with pytest.raises(InputError, match="tangential"):
+        check_resume(old, new, 1.0, tmp_path)
+    check_resume(old, new, 0.5, tmp_path)  # the same path up to 0.5 s: allowed
