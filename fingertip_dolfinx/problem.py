@@ -94,6 +94,15 @@ def _check_inputs(fmesh: FingertipMesh, indenters: Sequence[Indenter]) -> None:
             raise InputError("mesh", f"the tag {name!r} is missing.", "rebuild the mesh.")
 
 
+def check_tangential(fmesh: FingertipMesh, history) -> None:
+    """A path along x needs the whole width of the finger: a half model (the 3D `symmetry`
+    plane x = 0 on rollers, u_x = 0) mirrors the drag and would silently resist it."""
+    if hasattr(history, "tangential_at") and "symmetry" in fmesh.names:
+        raise InputError("protocol.tangential", "the mesh is a half model, mirror-symmetric "
+                         "about x = 0: a drag along x breaks that symmetry.",
+                         "drag a 2D section; a whole 3D finger is not built yet.")
+
+
 class FingertipProblem(SteppableState):
     """Forms, unknowns, supports and loads of the fingertip under rigid indenters.
 
@@ -130,6 +139,7 @@ class FingertipProblem(SteppableState):
         friction=0.0,
     ):
         _check_inputs(fmesh, indenters)
+        check_tangential(fmesh, history)
         #: μ per indenter (0: frictionless, the default; physics/friction.py).
         self.friction_coefficients = friction_coefficients(friction, len(indenters))
         self.fmesh, self.history, self.tissues, self.options = fmesh, history, tissues, options

@@ -208,3 +208,17 @@ def test_a_resume_with_another_tangential_path_is_refused(tmp_path):
     with pytest.raises(InputError, match="tangential"):
         check_resume(old, new, 1.0, tmp_path)
     check_resume(old, new, 0.5, tmp_path)  # the same path up to 0.5 s: allowed
+
+
+def test_a_half_model_is_not_dragged_across_its_symmetry_plane():
+    from types import SimpleNamespace
+
+    from fingertip_dolfinx.problem import check_tangential
+
+    path = TangentialPath(RampHold(depth=0.5, ramp_time=0.5, end_time=1.5),
+                          PiecewiseLinear((0.0, 0.5, 1.5), (0.0, 0.0, 1.0)))
+    half = SimpleNamespace(names={"symmetry": 7, "pulp_surface": 1})
+    with pytest.raises(InputError, match="half model"):
+        check_tangential(half, path)
+    check_tangential(half, path.normal)  # pressing a half model stays as it was
+    check_tangential(SimpleNamespace(names={"pulp_surface": 1}), path)  # a 2D section
