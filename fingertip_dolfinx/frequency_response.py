@@ -172,7 +172,12 @@ class SiteTransfer:
 
 
 def pressing_of(scene: Scene) -> RampHold:
-    """The pre-indentation of the scene's protocol: a Vibration's `pressing`, or a RampHold."""
+    """The pre-indentation of the scene's protocol: a Vibration's `pressing`, or a RampHold.
+    Frictional indenters are refused: the linearisation has no friction term."""
+    if any(i.friction > 0 for i in scene.indenters):
+        raise InputError(f"{scene.name}: indenters.friction", "the frequency response is "
+                         "linearised about a frictionless contact.",
+                         "set friction = 0 for the frequency route, or run in time.")
     history = scene.history
     if isinstance(history, Vibration):
         return history.pressing

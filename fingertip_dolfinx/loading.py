@@ -307,6 +307,49 @@ class Vibration:
 History = PiecewiseLinear | RampHold | Sinusoid | Vibration
 
 
+@dataclass(frozen=True)
+class TangentialPath:
+    """An indenter path in two parts: the indentation d(t) of `normal` (any protocol) and the
+    tangential displacement x(t) of the indenters along +x (mm; 2D: across the finger), the
+    piecewise-linear `tangential`, constant after its last point. Press then shear: `normal`
+    a ramp-hold, `tangential` 0 until the ramp's end, then a ramp. It meets `LoadHistory`
+    (d(t), the end and depth of `normal`, the breakpoints of both), so every existing protocol
+    and its use stay as they are; `tangential_at(t)` is x(t).
+    """
+
+    normal: LoadHistory
+    tangential: PiecewiseLinear
+
+    def __post_init__(self):
+        if not isinstance(self.tangential, PiecewiseLinear):
+            raise InputError("protocol.tangential", f"got {self.tangential!r}.",
+                             "give a PiecewiseLinear path of (time, x) points.")
+        if self.tangential.times[-1] > self.normal.end_time + 1e-12:
+            raise InputError(
+                "protocol.tangential.times", f"the tangential path runs to "
+                f"{self.tangential.times[-1]:g} s, after the protocol's end "
+                f"({self.normal.end_time:g} s).", "end it by the protocol's end_time.")
+
+    @property
+    def end_time(self) -> float:
+        return self.normal.end_time
+
+    def __call__(self, t: float) -> float:
+        return self.normal(t)
+
+    def tangential_at(self, t: float) -> float:
+        """The indenters' tangential displacement x(t) (mm)."""
+        return self.tangential(t)
+
+    @property
+    def breakpoints(self) -> tuple[float, ...]:
+        return tuple(sorted(set(self.normal.breakpoints) | set(self.tangential.breakpoints)))
+
+    @property
+    def deepest(self) -> float:
+        return self.normal.deepest
+
+
 KINDS = {"ramp-hold": RampHold, "piecewise-linear": PiecewiseLinear, "sinusoid": Sinusoid,
          "vibration": Vibration}
 
@@ -314,6 +357,10 @@ KINDS = {"ramp-hold": RampHold, "piecewise-linear": PiecewiseLinear, "sinusoid":
 def history_from_dict(data: dict, where: str = "protocol") -> LoadHistory:
     """Build a protocol from a scene file's `[protocol]` table (`kind` picks the class)."""
     data = dict(data)
+    tangential = data.pop("tangential", None)
+    if tangential is not None:  # the normal protocol, and the indenters' path along x
+        return TangentialPath(history_from_dict(data, where),
+                              _tangential(tangential, f"{where}.tangential"))
     kind = data.pop("kind", "ramp-hold")
     if kind not in KINDS:
         raise InputError(f"{where}.kind", f"unknown protocol {kind!r}.",
@@ -329,6 +376,16 @@ def history_from_dict(data: dict, where: str = "protocol") -> LoadHistory:
             raise InputError(f"{where}.{key}", f"must be a number or a list of numbers, got "
                              f"{value!r}.", "write a number.")
     return cls(**data)
+
+
+def _tangential(data, where: str) -> PiecewiseLinear:
+    """`[protocol.tangential]`: times (s) and values (mm along x) of a piecewise-linear path."""
+    check_keys(where, data, ["times", "values"], ["times", "values"])
+    for key, value in data.items():
+        if not isinstance(value, list | tuple) or not all(
+                isinstance(x, int | float) and not isinstance(x, bool) for x in value):
+            raise InputError(f"{where}.{key}", f"must be a list of numbers, got {value!r}.")
+    return PiecewiseLinear(tuple(data["times"]), tuple(data["values"]))
 
 
 def step_times(breakpoints: Sequence[float], t: float, dt: float, end_time: float) -> float:

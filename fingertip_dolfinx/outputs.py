@@ -341,8 +341,16 @@ def _same_load(old: dict, new: dict, t: float) -> bool:
     if len(kinks[0]) != len(kinks[1]) or not np.allclose(*kinks, rtol=0, atol=1e-12):
         return False
     s = np.union1d(np.linspace(0.0, t, 1001), [*kinks[0], t])
-    da, db = np.array([a(x) for x in s]), np.array([b(x) for x in s])
-    return bool(np.allclose(da, db, rtol=1e-12, atol=1e-15))
+    same = True
+    for path in (lambda h, x: h(x), _tangential_at):  # the indentation, and the path along x
+        da, db = (np.array([path(h, x) for x in s]) for h in (a, b))
+        same = same and bool(np.allclose(da, db, rtol=1e-12, atol=1e-15))
+    return same
+
+
+def _tangential_at(history, t: float) -> float:
+    """The indenters' tangential displacement at t (mm; 0 for a protocol without one)."""
+    return history.tangential_at(t) if hasattr(history, "tangential_at") else 0.0
 
 
 class FieldWriters:

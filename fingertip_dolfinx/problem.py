@@ -71,6 +71,7 @@ from .physics.contact import (
     TipResolutionWarning,
     check_tip_resolution,
 )
+from .physics.friction import CoulombFriction, friction_coefficients
 from .physics.inertia import Inertia
 from .physics.kinematics import deformation_gradient
 from .physics.tissues import REGIONS, WU2004, Tissues
@@ -93,6 +94,15 @@ def _check_inputs(fmesh: FingertipMesh, indenters: Sequence[Indenter]) -> None:
             raise InputError("mesh", f"the tag {name!r} is missing.", "rebuild the mesh.")
 
 
+def check_tangential(fmesh: FingertipMesh, history) -> None:
+    """A path along x needs the whole width of the finger: a half model (the 3D `symmetry`
+    plane x = 0 on rollers, u_x = 0) mirrors the drag and would silently resist it."""
+    if hasattr(history, "tangential_at") and "symmetry" in fmesh.names:
+        raise InputError("protocol.tangential", "the mesh is a half model, mirror-symmetric "
+                         "about x = 0: a drag along x breaks that symmetry.",
+                         "drag a 2D section; a whole 3D finger is not built yet.")
+
+
 class FingertipProblem(SteppableState):
     """Forms, unknowns, supports and loads of the fingertip under rigid indenters.
 
@@ -113,6 +123,10 @@ class FingertipProblem(SteppableState):
         The materials of the four regions.
     options : ModelOptions, optional
         The modelling and discretisation choices.
+    friction : float or sequence of float, optional
+        Coulomb's μ, one for all indenters or one each (0, the default: frictionless, the
+        forms exactly those without friction). A `loading.TangentialPath` history moves the
+        indenters along x as well.
     """
 
     def __init__(
@@ -122,8 +136,12 @@ class FingertipProblem(SteppableState):
         history: History,
         tissues: Tissues = WU2004,
         options: ModelOptions = DEFAULT_OPTIONS,
+        friction=0.0,
     ):
         _check_inputs(fmesh, indenters)
+        check_tangential(fmesh, history)
+        #: μ per indenter (0: frictionless, the default; physics/friction.py).
+        self.friction_coefficients = friction_coefficients(friction, len(indenters))
         self.fmesh, self.history, self.tissues, self.options = fmesh, history, tissues, options
         self.indenters = list(indenters)
         self.mesh = msh = fmesh.mesh
@@ -219,7 +237,10 @@ class FingertipProblem(SteppableState):
         X_pulp, _ = self.pulp_nodes()
         self.y_touch = first_touch(np.concatenate(self.mesh.comm.allgather(X_pulp)),
                                     self.indenters)
-        self.obstacles = [Obstacle.at(self.mesh, ind, self.y_touch) for ind in self.indenters]
+        # an x_tip Constant only for a path with a tangential part: else the forms stay as they were
+        x_tip = 0.0 if hasattr(self.history, "tangential_at") else None
+        self.obstacles = [Obstacle.at(self.mesh, ind, self.y_touch, x_tip)
+                          for ind in self.indenters]
         pulp, o = self.laws.regions["skin"], self.options
         self.contact = NitscheContact(
             self.u, pulp.elastic_stress, self.ds(self.tags["pulp_surface"]), self.obstacles,
@@ -229,6 +250,10 @@ class FingertipProblem(SteppableState):
         #: Surface element size (mm) under each indenter's tip; warns if it cannot hold it.
         self.tip_mesh_sizes = check_tip_resolution(self.contact)
         self._tip_warned = False
+        self.friction = None
+        if any(mu > 0 for mu in self.friction_coefficients):
+            self.friction = CoulombFriction(self.contact, self.friction_coefficients)
+            return self.contact.residual(v) + self.friction.residual(v)
         return self.contact.residual(v)
 
     def _inertia(self, v) -> ufl.Form:
@@ -301,13 +326,17 @@ class FingertipProblem(SteppableState):
         return getattr(self.laws.pore, "has_rate", False)
 
     def histories(self) -> list:
-        """The QLV histories of the regions' laws (a law shared by regions counts once)."""
-        return [law.history for law in self.laws.with_history()]
+        """The QLV histories of the regions' laws (a law shared by regions counts once), and
+        the friction's last accepted state (its slip increments start there)."""
+        laws = [law.history for law in self.laws.with_history()]
+        return laws + ([] if self.friction is None else [self.friction])
 
     def history_arrays(self) -> dict[str, np.ndarray]:
         """qlv_h{i}, qlv_S_e_n if the skin is viscoelastic, qlv_subcutaneous_h{i},
-        qlv_subcutaneous_S_e_n if the subcutaneous solid is (`model.Laws.history_arrays`)."""
-        return self.laws.history_arrays()
+        qlv_subcutaneous_S_e_n if the subcutaneous solid is (`model.Laws.history_arrays`);
+        with friction, its friction_u_prev and friction_previous_{i}."""
+        arrays = self.laws.history_arrays()
+        return arrays if self.friction is None else arrays | self.friction.arrays()
 
     def region_energies(self) -> dict[int, ufl.core.expr.Expr]:
         """Cell-tag value -> that region's own strain energy density (MPa; rigid regions 0)."""
@@ -331,7 +360,14 @@ class FingertipProblem(SteppableState):
     def set_time(self, t: float) -> None:
         for obstacle in self.obstacles:
             obstacle.y_tip.value = self.y_touch + self.indentation(t)
+            if obstacle.x_tip is not None:
+                obstacle.x_tip.value = self.tangential_displacement(t)
         self.time = t
+
+    def tangential_displacement(self, t: float) -> float:
+        """The indenters' displacement along x at time t (mm; 0 without a tangential path)."""
+        return float(self.history.tangential_at(t)) if hasattr(
+            self.history, "tangential_at") else 0.0
 
     def residual_hotspot(self, residual) -> np.ndarray | None:
         """Reference position (mm) of the displacement node with the largest residual force in
@@ -361,13 +397,22 @@ class FingertipProblem(SteppableState):
         forces = self.contact.forces()
         J_min, _ = self.min_jacobian()
         force, reaction = self.force_keys
-        return {
+        out = {
             "indentation_mm": self.indentation(self.time),
             force: float(np.sum(forces)),
             reaction: self.support_reaction(),
             "max_penetration_mm": self.max_penetration(),
             "min_J": J_min,
         }
+        return out if self.friction is None else out | self._friction_diagnostics()
+
+    def _friction_diagnostics(self) -> dict[str, float]:
+        """With friction: the indenters' y-force with the friction's share (what balances the
+        support), the tangential force along x and the indenters' tangential displacement."""
+        fx, fy = self.friction.forces().sum(axis=0)[:2]
+        force = self.force_keys[0]
+        return {force: float(fy), f"tangential_{force}": float(fx),
+                "tangential_displacement_mm": self.tangential_displacement(self.time)}
 
     # --- penetration ----------------------------------------------------------------------------
     def max_penetration(self) -> float:

@@ -227,7 +227,8 @@ class Run:
         record = self._own_checkpoint(resume)
         self.fm = self._mesh(resume)
         self.problem = FingertipProblem(self.fm, scene.indenters, scene.history,
-                                        scene.materials, scene.model)
+                                        scene.materials, scene.model,
+                                        friction=[i.friction for i in scene.indenters])
         check_reach(self.problem, scene)
         self.start_time, self.steps_before, self.previous = 0.0, 0, None
         steps = scene.steps
@@ -281,14 +282,16 @@ class Run:
         scene, out, comm, p = self.scene, self.out, self.comm, self.problem
         self.arrays = FieldArrays(p, self.derived)  # fields_t<t>s.npz, for Result.to_pyvista
         if not self.three_d:
-            self.history = CsvLog(out / "history.csv", HISTORY_COLUMNS, comm, after)
+            self.history = CsvLog(out / "history.csv", HISTORY_COLUMNS + self._friction_columns,
+                                  comm, after)
             self.surfaces = {"": CsvLog(out / "surface_profile.csv", SURFACE_COLUMNS, comm,
                                         after)}
             self.depth = CsvLog(out / "depth_profiles.csv", DEPTH_COLUMNS, comm, after)
             self.line_force = None
             self.profiles = Profiles(p, self.derived, scene.section.outer, scene.outputs)
             return
-        self.history = CsvLog(out / "history.csv", HISTORY_COLUMNS_3D, comm, after)
+        self.history = CsvLog(out / "history.csv", HISTORY_COLUMNS_3D + self._friction_columns,
+                              comm, after)
         self.surfaces = {d: CsvLog(out / f"surface_{d}.csv", SURFACE_COLUMNS_3D, comm, after)
                          for d in ("across", "along")}
         self.depth = CsvLog(out / "depth_profiles.csv", DEPTH_COLUMNS_3D, comm, after)
@@ -338,6 +341,14 @@ class Run:
                              breakpoints=scene.output_times, on_step=self.on_step,
                              previous=self.previous)
 
+    @property
+    def _friction_columns(self) -> tuple[str, ...]:
+        """history.csv's tangential force and displacement, with friction only (a frictionless
+        run's file stays as it was)."""
+        if self.problem.friction is None:
+            return ()
+        return (f"tangential_{self.problem.force_keys[0]}", "tangential_displacement_mm")
+
     def on_step(self, report) -> None:
         """Write what the accepted step produced (its state is the converged one)."""
         self.step_count += 1
@@ -350,7 +361,8 @@ class Run:
             "dt_s": report.dt, column_reaction: d[reaction],
             "max_penetration_mm": d["max_penetration_mm"], "min_J": d["min_J"],
             "cuts": report.cuts, "wall_time_s": report.wall_time_s,
-            "krylov_iterations": report.linear_iterations}])
+            "krylov_iterations": report.linear_iterations}
+            | {k: d[k] for k in self._friction_columns}])
         at_output = any(abs(report.time - t) < 1e-9 for t in self.scene.output_times)
         outputs = self.scene.outputs
         if at_output or (outputs.fields == "every-step"

@@ -26,7 +26,7 @@ from .geometry.fingertip3d import Fingertip3D, load_fingertip3d, section_dimensi
 from .geometry.indenters import Indenter, load_indenter, make_indenter
 from .geometry.section import Section, load_section
 from .harmonic_options import HarmonicOptions
-from .loading import KINDS, LoadHistory, history_from_dict
+from .loading import KINDS, LoadHistory, TangentialPath, history_from_dict
 from .model import ModelOptions
 from .physics.tissues import DEFAULT_SET, WU2004, Tissues, load_materials
 from .stepping.options import StepOptions, check_linear
@@ -719,22 +719,40 @@ def _options(cls, data: Mapping, where: str):
 
 def scene_record(scene: Scene) -> dict:
     """The scene as plain data, in the scene file's own tables (for summary.json)."""
-    history = scene.history
-    kind = next((k for k, cls in KINDS.items() if isinstance(history, cls)), type(history).__name__)
     return _plain({
         "name": scene.name,
         "description": scene.description,
         "section": dataclasses.asdict(scene.section),
-        "indenters": [{"shape": i.shape, **dataclasses.asdict(i)} for i in scene.indenters],
+        "indenters": [_indenter_record(i) for i in scene.indenters],
         "materials": scene.materials.record(),
-        "protocol": {"kind": kind, **{f.name: getattr(history, f.name)
-                                      for f in dataclasses.fields(history) if f.init}},
+        "protocol": _protocol_record(scene.history),
         "model": dataclasses.asdict(scene.model),
         "steps": dataclasses.asdict(scene.steps),
         "solver": {"linear": scene.linear, **scene.petsc_options},
         "output": dataclasses.asdict(scene.outputs),
         "accuracy": dataclasses.asdict(scene.accuracy),
     } | ({} if scene.harmonic is None else {"harmonic": dataclasses.asdict(scene.harmonic)}))
+
+
+def _indenter_record(indenter: Indenter) -> dict:
+    """An indenter's table; `friction` only where it is not 0 (a frictionless scene's record
+    is the one it had before indenters had friction: its runs still resume)."""
+    table = {"shape": indenter.shape, **dataclasses.asdict(indenter)}
+    if table["friction"] == 0:
+        del table["friction"]
+    return table
+
+
+def _protocol_record(history) -> dict:
+    """The `[protocol]` table of `history` (a tangential path: its normal protocol's table with
+    the `tangential` points), as `loading.history_from_dict` reads it back."""
+    if isinstance(history, TangentialPath):
+        path = history.tangential
+        return _protocol_record(history.normal) | {
+            "tangential": {"times": path.times, "values": path.values}}
+    kind = next((k for k, cls in KINDS.items() if isinstance(history, cls)), type(history).__name__)
+    return {"kind": kind, **{f.name: getattr(history, f.name)
+                             for f in dataclasses.fields(history) if f.init}}
 
 
 def _plain(value):

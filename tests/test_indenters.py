@@ -157,7 +157,8 @@ def test_a_user_file_loads(tmp_path):
         ({"shape": "wedge", "tip_radius": 0.1, "base": 1.2, "height": 0.1},
          "does not exceed tip_radius"),
         ({"shape": "bar", "width": 1.0, "colour": "red"},
-         "colour: unknown key.*keys of a bar are: shape, centre_x, centre_z, axis, width"),
+         "colour: unknown key.*keys of a bar are: shape, centre_x, centre_z, friction, "
+         "axis, width"),
         ({"shape": "wedge", "base": 1.2}, "tip_radius, height: missing for a wedge"),
         ({"shape": "pyramid"}, "shape: got 'pyramid'.*one of wedge, bar, plate, cylinder"),
         ({"width": 1.0}, "shape: got None"),

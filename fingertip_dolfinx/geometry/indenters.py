@@ -52,7 +52,9 @@ _UFL = _Ops(ufl.conditional, ufl.sqrt, abs, ufl.sign)
 #: Prism directions: "z" along the finger (the plane-strain line load), "x" across it.
 AXES = ("z", "x")
 #: Keys that have a default (every other size must be given).
-OPTIONAL_KEYS = ("centre_x", "centre_z", "axis")
+OPTIONAL_KEYS = ("centre_x", "centre_z", "axis", "friction")
+#: Keys that are not sizes: any finite number (centres), or >= 0 (friction).
+_NOT_SIZES = ("centre_x", "centre_z", "friction")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -61,6 +63,9 @@ class Indenter:
 
     centre_x: float = 0.0  # mm across the finger (0: under the pulp's lowest point)
     centre_z: float = 0.0  # mm along the finger (3D: an "x" prism's or a sphere's position)
+    #: Coulomb's friction coefficient μ between this indenter and the skin (0: frictionless,
+    #: the paper's contact; physics/friction.py, docs/theory/friction.md for measured values)
+    friction: float = 0.0
     shape: ClassVar[str]
 
     def __post_init__(self):
@@ -72,11 +77,14 @@ class Indenter:
                 raise InputError(f"{self.shape}.{f.name}", f"must be a number, got {value!r}.")
             if not math.isfinite(value):
                 raise InputError(f"{self.shape}.{f.name}", f"must be finite, got {value}.")
-            if f.name not in ("centre_x", "centre_z") and value <= 0:
+            if f.name not in _NOT_SIZES and value <= 0:
                 raise InputError(
                     f"{self.shape}.{f.name}", f"must be positive (mm), got {value}.",
                     "give the size in mm as a positive number.",
                 )
+        if self.friction < 0:
+            raise InputError(f"{self.shape}.friction", f"must be >= 0, got {self.friction}.",
+                             "use 0 (frictionless) or a measured μ, typically 0.4-1.")
 
     def tip_curvature_radius(self) -> float:
         """Radius of curvature at the tip (mm): what the surface mesh must resolve."""

@@ -79,14 +79,31 @@ class TipResolutionWarning(UserWarning):
 
 @dataclass(frozen=True)
 class Obstacle:
-    """An indenter in the scene: the loading moves it by setting `y_tip.value`."""
+    """An indenter in the scene: the loading moves it by setting `y_tip.value`, and, if it has
+    one, its tangential displacement along x by `x_tip.value` (mm; None: it never moves in x,
+    and the contact forms are exactly those of a fixed centre_x)."""
 
     indenter: Indenter
     y_tip: fem.Constant
+    x_tip: fem.Constant | None = None
 
     @classmethod
-    def at(cls, domain: dmesh.Mesh, indenter: Indenter, y_tip: float = 0.0) -> Obstacle:
-        return cls(indenter, fem.Constant(domain, float(y_tip)))
+    def at(cls, domain: dmesh.Mesh, indenter: Indenter, y_tip: float = 0.0,
+           x_tip: float | None = None) -> Obstacle:
+        x = None if x_tip is None else fem.Constant(domain, float(x_tip))
+        return cls(indenter, fem.Constant(domain, float(y_tip)), x)
+
+    def relative(self, x):
+        """The point x (UFL vector) in the indenter's frame: shifted back by x_tip along x."""
+        if self.x_tip is None:
+            return x
+        return x - ufl.as_vector([self.x_tip if k == 0 else 0.0 for k in range(x.ufl_shape[0])])
+
+    def relative_np(self, x: np.ndarray) -> np.ndarray:
+        """`relative` for points (m, d) in numpy."""
+        if self.x_tip is None:
+            return x
+        return x - np.eye(x.shape[1])[0] * float(self.x_tip.value)
 
 
 class NitscheContact:
@@ -136,9 +153,11 @@ class NitscheContact:
         self.gamma = gamma0 * modulus / h
         x = ufl.SpatialCoordinate(domain) + u
         t = P * ufl.FacetNormal(domain)
+        #: The nominal traction P N on the surface: friction's tangential estimate (friction.py).
+        self.traction = t
         gaps, self._normals, self._tn = [], [], []
         for obstacle in self.obstacles:
-            g, n = obstacle.indenter.signed_distance(x, obstacle.y_tip)
+            g, n = obstacle.indenter.signed_distance(obstacle.relative(x), obstacle.y_tip)
             gaps.append(g)
             self._normals.append(n)
             # The penalty method is Nitsche's without the traction estimate (t_n = 0, θ = 0).
@@ -243,7 +262,8 @@ class NitscheContact:
         bs = V.dofmap.index_map_bs  # = gdim
         x = V.tabulate_dof_coordinates()[nodes, :bs] + u.x.array.reshape(-1, bs)[nodes]
         depth = max(
-            (float(np.max(-o.indenter.signed_distance_np(x, o.y_tip.value)[0], initial=0.0))
+            (float(np.max(-o.indenter.signed_distance_np(o.relative_np(x), o.y_tip.value)[0],
+                          initial=0.0))
              for o in self.obstacles),
         )
         return V.mesh.comm.allreduce(depth, op=MPI.MAX)

@@ -22,6 +22,9 @@ public name is imported here (`from fingertip_dolfinx.studies.problems import Co
   with Nitsche contact, and the plane-strain Hertz half-width and peak pressure. `HertzSphere`:
   the 3D case, a rigid sphere on a quarter block (two symmetry planes), Hertz's contact radius
   and peak pressure (forces in N).
+- `mindlin`: `CattaneoMindlin`, the cylinder on a whole block [−L, L] × [0, L] with Coulomb
+  friction, pressed then dragged along x (`drag`): Cattaneo–Mindlin's stick half-width
+  c = a sqrt(1 − Q/(μP)) and tangential traction, gross slip at Q = μP; `stick_halfwidth`.
 - `layered`: `layered_block`, a synthetic 3D `FingertipMesh`, the four tissues as horizontal
   slabs of a half block with the fingertip's tags (pulp below, nail centre strip on top,
   symmetry and proximal-cut planes): the 3D problem's wiring without the fingertip geometry.
@@ -45,6 +48,7 @@ from .block import (
 )
 from .hertz import Hertz, HertzBlock, HertzSphere, HertzSphereBlock, contact_edge
 from .layered import LAYERS, layered_block
+from .mindlin import CattaneoMindlin, MindlinBlock, drag, stick_halfwidth
 from .platens import (
     ConfinedRelaxation,
     PlatenRelaxation,
@@ -61,11 +65,12 @@ from .vibrating import VibratingLayer, driven_layer, driven_layer_force
 from .wiring import QUADRATURE_DEGREE, graded, newton_problem, support_reaction
 
 __all__ = [
-    "ConfinedBlock", "ConfinedRelaxation", "Hertz", "HertzBlock", "HertzSphere",
-    "HertzSphereBlock", "LAYERS", "PlatenRelaxation", "PlatenState", "QUADRATURE_DEGREE",
-    "RelaxationRun", "Terzaghi", "UnconfinedBlock", "UnconfinedRelaxation",
-    "VibratingLayer", "confined_drained_state", "confined_drained_stress",
-    "confined_modulus", "contact_edge", "driven_layer", "driven_layer_force", "graded",
-    "layered_block", "newton_problem", "prony_ramp_integral", "run_relaxation",
-    "support_reaction", "unconfined_drained_state", "unconfined_undrained_state",
+    "CattaneoMindlin", "ConfinedBlock", "ConfinedRelaxation", "Hertz", "HertzBlock",
+    "HertzSphere", "HertzSphereBlock", "LAYERS", "MindlinBlock", "PlatenRelaxation",
+    "PlatenState", "QUADRATURE_DEGREE", "RelaxationRun", "Terzaghi", "UnconfinedBlock",
+    "UnconfinedRelaxation", "VibratingLayer", "confined_drained_state",
+    "confined_drained_stress", "confined_modulus", "contact_edge", "drag", "driven_layer",
+    "driven_layer_force", "graded", "layered_block", "newton_problem", "prony_ramp_integral",
+    "run_relaxation", "stick_halfwidth", "support_reaction", "unconfined_drained_state",
+    "unconfined_undrained_state",
 ]

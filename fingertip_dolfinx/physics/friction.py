@@ -1,0 +1,174 @@
+"""Coulomb friction between rigid indenters and the body's surface, on top of `contact.py`.
+
+Per indenter, with the contact's normal n (from the indenter into the body), pressure
+p = [t_n − γ g]_+ and the nominal traction t = P N, the tangential traction the indenter puts
+on the body, f, obeys Coulomb's law: |f| ≤ μ p; where |f| < μ p the surface sticks to the
+indenter, and where it slips f = −μ p s/|s| opposes the slip s. For any γ > 0 this is
+Alart & Curnier's (CMAME 92, 1991) augmented law; in Nitsche's form Chouly (J. Math. Anal.
+Appl. 411, 2014, 329–339) for Tresca friction, Mlika, Renard & Chouly (CMAME 325, 2017,
+265–288) for Coulomb friction at finite strain; here in the quasi-static incremental form
+
+    f = P_B(μ p)(t_t − γ Δs_t),
+
+P_B(r) the projection onto the ball of radius r (the tangent plane's disc |q| ≤ r), t_t the
+tangential part of t, Δs_t = (I − n⊗n)[(u − u_prev) − Δc] the slip increment: the surface
+point's displacement since the last accepted step relative to the indenter's (Δc, its
+translation over the step). Nitsche's method with θ = 0 (the contact's own default) adds
+
+    − ∫ f·v ds
+
+to the residual, next to the contact's − ∫ p n·v ds. With the penalty law (t_n = 0 in the
+contact) t_t is dropped too: f = P_B(μ p)(−γ Δs_t), a tangential spring of stiffness γ while
+sticking (an elastic slip f/γ), Coulomb's bound while slipping.
+
+The slip is an increment over one step (the quasi-static time-discrete law): a step ends in
+`mark_accepted`, which moves u_prev and the indenters' previous positions. Coulomb friction
+with the slip over a step is exact for a monotonic, one-directional load (the
+Cattaneo–Mindlin check, benchmarks page) and first order in the step for a reversing one.
+
+μ = 0 for every indenter: build no `CoulombFriction`; the contact's forms are untouched and the
+frictionless answers unchanged to the last digit.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from functools import cached_property
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from mpi4py import MPI
+
+from ..errors import InputError
+from .contact import NitscheContact
+
+#: |q| below this (MPa) counts as 0 in the projection's division (the stick branch is then
+#: taken anyway: only a zero ball r = 0, out of contact, reaches it, and gives f = 0).
+_TINY = 1e-300
+
+
+def friction_coefficients(mu, count: int, where: str = "indenter.friction") -> tuple[float, ...]:
+    """μ per indenter: one number for all, or one per indenter; each finite and >= 0."""
+    values = list(mu) if isinstance(mu, Sequence) else [mu] * count
+    if len(values) != count:
+        raise InputError(where, f"{len(values)} friction coefficients for {count} indenters.",
+                         "give one μ for all indenters, or one per indenter.")
+    for value in values:
+        if isinstance(value, bool) or not isinstance(value, int | float) or not (
+                np.isfinite(value) and value >= 0):
+            raise InputError(where, f"a friction coefficient must be a number >= 0, got "
+                             f"{value!r}.",
+                             "use 0 (frictionless) or a measured value, typically 0.4-1.")
+    return tuple(float(v) for v in values)
+
+
+def project_on_ball(q, radius):
+    """P_B(r)(q): q if |q| <= r, else r q/|q| (UFL; q a vector, r >= 0)."""
+    norm = ufl.sqrt(ufl.dot(q, q))
+    return ufl.conditional(ufl.le(norm, radius), q, radius / ufl.max_value(norm, _TINY) * q)
+
+
+class CoulombFriction:
+    """Coulomb friction for the indenters of `contact`, μ per indenter (module docstring).
+
+    Add `residual(v)` to the contact's; call `mark_accepted()` after every accepted step (it
+    runs once here, with the body and the indenters at their start). Measure a step (forces,
+    traction, stick margin) before accepting it: they depend on the step's slip. An indenter
+    moved along x needs an `x_tip` Constant (`Obstacle.at(..., x_tip=0.0)`).
+
+    γ_t = `gamma_ratio` × the contact's γ. The method is consistent for any γ_t > 0; the
+    contact's γ = γ0 M/h is scaled by the P-wave modulus M, which for nearly incompressible
+    tissue is ~50 times the shear modulus G that sets the surface's tangential stiffness:
+    G/M brings γ_t to γ0 G/h (on the Cattaneo–Mindlin block, ν = 0.49, a/2.5 elements: 15–28
+    Newton iterations per tangential step; with γ_t = γ, 40–45 and a failed line search).
+    """
+
+    def __init__(self, contact: NitscheContact, mu, *, gamma_ratio: float = 1.0):
+        self.contact = contact
+        self.gamma = gamma_ratio * contact.gamma
+        self.mu = friction_coefficients(mu, len(contact.obstacles))
+        u = contact.u
+        domain = u.function_space.mesh
+        gdim = domain.geometry.dim
+        self.u_prev = fem.Function(u.function_space, name="u_prev")
+        #: Each indenter's (x, y) at the last accepted step.
+        self._previous = [fem.Constant(domain, np.zeros(2)) for _ in contact.obstacles]
+        self._forces, self.trial = [], []
+        for i in range(len(contact.obstacles)):
+            q, radius = self._trial(i, gdim)
+            self._forces.append(project_on_ball(q, radius))
+            self.trial.append(radius - ufl.sqrt(ufl.dot(q, q)))
+        nearest = contact._nearest
+        #: The tangential traction f on the body (MPa, nominal), the nearest indenter's.
+        self.traction = sum(c * f for c, f in zip(nearest, self._forces))
+        #: μ p − |t_t − γ Δs_t| of the nearest indenter: > 0 where the surface sticks, <= 0
+        #: where it slips (or is free: there p = 0); its zero level is the stick zone's edge.
+        self.stick_margin = sum(c * m for c, m in zip(nearest, self.trial))
+        self.mark_accepted()
+
+    def _trial(self, i: int, gdim: int) -> tuple:
+        """Indenter i's q = t_t − γ Δs_t (UFL vector) and the ball's radius μ p."""
+        contact, obstacle = self.contact, self.contact.obstacles[i]
+        n = contact._normals[i]
+        moved = ufl.as_vector([_coordinate(obstacle, k) - self._previous[i][k] if k < 2 else 0.0
+                               for k in range(gdim)])
+        tangential = ufl.Identity(gdim) - ufl.outer(n, n)
+        slip = tangential * (contact.u - self.u_prev - moved)
+        # the penalty law has no traction estimate (t_n = 0 in the contact, t_t = 0 here)
+        t_t = tangential * contact.traction if contact.method == "nitsche" else 0.0 * slip
+        return t_t - self.gamma * slip, self.mu[i] * contact._pressures[i]
+
+    def _term(self, i: int, v) -> ufl.Form:
+        return -self.contact._nearest[i] * ufl.dot(self._forces[i], v) * self.contact.ds
+
+    def residual(self, v) -> ufl.Form:
+        """The friction contribution to the residual: add it to the contact's."""
+        return sum(self._term(i, v) for i, mu in enumerate(self.mu) if mu > 0)
+
+    def mark_accepted(self) -> None:
+        """The current state becomes the start of the next slip increment."""
+        self.u_prev.x.array[:] = self.contact.u.x.array
+        for previous, obstacle in zip(self._previous, self.contact.obstacles):
+            previous.value[:] = (_value(obstacle.x_tip), _value(obstacle.y_tip))
+
+    def advance(self) -> None:
+        """The time stepper's name for `mark_accepted` (friction is one of its histories)."""
+        self.mark_accepted()
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The live arrays of the last accepted state, by checkpoint name."""
+        arrays = {"friction_u_prev": self.u_prev.x.array}
+        return arrays | {f"friction_previous_{i}": c.value for i, c in enumerate(self._previous)}
+
+    @cached_property
+    def _force_forms(self) -> list[list[fem.Form]]:
+        # Contact and friction residual tested with each rigid translation e_k: the force each
+        # indenter puts on the body, pressure and friction together (as contact._force_forms).
+        V = self.contact.u.function_space
+        bs = V.dofmap.index_map_bs
+        forms = []
+        for k in range(bs):
+            e_k = fem.Function(V)
+            e_k.x.array.reshape(-1, bs)[:, k] = 1.0
+            forms.append([fem.form(-(self.contact._term(i, e_k) + self._term(i, e_k)))
+                          for i in range(len(self.mu))])
+        return forms
+
+    def forces(self) -> np.ndarray:
+        """(indenters, gdim): the force each indenter exerts on the body, pressure and
+        friction (N/mm in plane strain, N in 3D); column 0 is the tangential force along x."""
+        comm = self.contact.u.function_space.mesh.comm
+        local = np.array([[fem.assemble_scalar(f) for f in row] for row in self._force_forms])
+        return comm.allreduce(local.T.copy(), op=MPI.SUM)
+
+
+def _coordinate(obstacle, k: int):
+    """The indenter's position along x (k = 0: x_tip, 0 without one) or y (k = 1: y_tip)."""
+    if k == 1:
+        return obstacle.y_tip
+    return 0.0 if obstacle.x_tip is None else obstacle.x_tip
+
+
+def _value(constant) -> float:
+    return 0.0 if constant is None else float(constant.value)

@@ -1,0 +1,224 @@
+"""Coulomb friction (physics/friction.py) against Cattaneo–Mindlin: a rigid cylinder pressed into
+a large elastic block, then dragged along it (`studies.problems.CattaneoMindlin`).
+
+Closed form (plane strain, Johnson §7.1): under P and a monotonic tangential load Q < μP the
+contact of Hertz half-width a sticks on |x| < c = a sqrt(1 − Q/(μP)); Q = μP is gross slip.
+"""
+
+from functools import cache
+
+import numpy as np
+import pytest
+import ufl
+from dolfinx import fem
+from mpi4py import MPI
+
+from fingertip_dolfinx.errors import InputError
+from fingertip_dolfinx.geometry.indenters import Cylinder
+from fingertip_dolfinx.loading import LoadHistory, PiecewiseLinear, RampHold, TangentialPath
+from fingertip_dolfinx.physics.contact import NitscheContact, Obstacle
+from fingertip_dolfinx.physics.friction import CoulombFriction, friction_coefficients
+from fingertip_dolfinx.studies.problems import Hertz, newton_problem
+from fingertip_dolfinx.studies.problems.mindlin import CattaneoMindlin, drag, stick_halfwidth
+
+MINDLIN = CattaneoMindlin()  # E = 1 MPa, ν = 0.49, μ = 0.5, R = 1 mm, a ≈ 0.02 mm
+#: Cylinder shifts (mm): partial stick at Q/μP ≈ 0.44 and 0.87, gross slip at the last
+#: (measured: Q reaches μP near 1e-3 mm on this block).
+SHIFTS = (4e-4, 8e-4, 1.2e-3)
+
+
+@cache
+def dragged(n: float) -> tuple[dict, ...]:
+    """The press (2 steps) and the drag through SHIFTS on a mesh of a/n at the contact."""
+    return tuple(drag(MINDLIN, MINDLIN.a_target / n, SHIFTS, prefix=f"drag_{n}_".replace(".", "_")))
+
+
+def stick_errors(rows) -> np.ndarray:
+    """|c − c_theory|/a of the partial-stick steps."""
+    return np.array([abs(r["c"] - r["c_theory"]) / r["a"] for r in rows if 0.1 < r["ratio"] < 0.95])
+
+
+def test_coulomb_bound_holds_at_every_step_and_gross_slip_carries_mu_times_the_load():
+    rows = dragged(2.5)
+    for r in rows:  # pointwise |f| <= μp at the quadrature points that also integrate the forces
+        assert abs(r["Q"]) <= MINDLIN.mu * abs(r["P"]) * (1 + 1e-9), r
+    # Gross slip: |f| = μp everywhere in contact; Q/μP differs from 1 only by the surface's tilt
+    # under the cylinder, of order (a/R)² = 4e-4, and by the pressure's x-share.
+    assert rows[-1]["ratio"] == pytest.approx(1.0, abs=2e-3)
+    assert rows[-1]["c"] == 0.0
+
+
+def test_stick_zone_matches_cattaneo_mindlin_on_a_coarse_mesh():
+    rows = dragged(2.5)
+    errors = stick_errors(rows)
+    assert len(errors) == 2, [r["ratio"] for r in rows]
+    # The stick edge is an active-set edge on P2 elements of a/2.5 at the contact, as the contact
+    # edge of Hertz is: located to within a quarter element, h/4 = 0.1 a (measured 0.07 a).
+    assert errors.max() < 0.1, errors
+    # Pressing with friction: ν = 0.49 (β ≈ 0.02) locks in almost no shear, all of it sticks.
+    press = rows[1]
+    assert abs(press["ratio"]) < 1e-2 and press["c"] == pytest.approx(press["a"], rel=0.1)
+
+
+@pytest.mark.slow
+def test_stick_zone_converges_with_the_mesh():
+    errors = [stick_errors(dragged(n)).max() for n in (2.5, 5, 10)]
+    assert errors[2] < errors[0] and errors[2] < 0.03, errors
+
+
+def _hertz_forces(friction_mu: float | None) -> tuple[float, np.ndarray]:
+    """The Hertz half block pressed in 2 steps: the cylinder's force and the displacement; with
+    `friction_mu`, its obstacle has an x_tip Constant and a CoulombFriction of that μ is added."""
+    hertz = Hertz()
+    domain, tags = hertz.mesh(hertz.a_target / 2.5, MPI.COMM_SELF)
+    V = fem.functionspace(domain, ("Lagrange", 2, (2,)))
+    u, v = fem.Function(V), ufl.TestFunction(V)
+    P = hertz.stress(u)
+
+    x_tip = None if friction_mu is None else 0.0
+    obstacle = Obstacle.at(domain, Cylinder(radius=hertz.R), y_tip=0.0, x_tip=x_tip)
+    ds = ufl.Measure("ds", domain, subdomain_data=tags)
+    contact = NitscheContact(u, P, ds(hertz.BOTTOM), [obstacle], modulus=hertz.modulus)
+    residual = ufl.inner(P, ufl.grad(v)) * ufl.dx + contact.residual(v)
+    if friction_mu is not None:
+        residual += CoulombFriction(contact, friction_mu).residual(v)
+    top = fem.locate_dofs_topological(V, 1, tags.find(hertz.TOP))
+    side = fem.locate_dofs_topological(V.sub(0), 1, tags.find(hertz.SYMMETRY))
+    bcs = [fem.dirichletbc(np.zeros(2), top, V), fem.dirichletbc(0.0, side, V.sub(0))]
+    problem = newton_problem(residual, u, bcs, f"unchanged_{friction_mu}_".replace(".", "_"))
+    for k in (1, 2):
+        obstacle.y_tip.value = hertz.depth * k / 2
+        problem.solve()
+        assert problem.solver.getConvergedReason() > 0
+    return float(contact.forces()[0]), u.x.array.copy()
+
+
+def test_zero_friction_and_a_resting_tangential_constant_change_nothing_to_the_last_digit():
+    force, u = _hertz_forces(None)
+    force_mu0, u_mu0 = _hertz_forces(0.0)
+    assert force_mu0 == force
+    assert np.array_equal(u_mu0, u)
+
+
+def test_stick_halfwidth_interpolates_the_zero_crossings():
+    x = np.linspace(-2.0, 2.0, 9)
+    margin = 1.0 - np.abs(x)  # sticks on |x| < 1
+    assert stick_halfwidth(x, margin) == pytest.approx(1.0)
+    assert stick_halfwidth(x, -np.ones_like(x)) == 0.0
+
+
+@pytest.mark.parametrize("mu, count", [(-0.1, 1), (float("nan"), 1), ((0.5, 0.5), 1), (True, 1)])
+def test_bad_friction_coefficients_are_refused(mu, count):
+    with pytest.raises(InputError, match="friction"):
+        friction_coefficients(mu, count)
+
+
+def test_cattaneo_mindlin_traction_carries_the_tangential_force():
+    # ∫ q dx = μP − μP c²/a² = Q: the closed form's two ellipses are consistent with c(Q).
+    P, Q = 1e-3, 0.6 * MINDLIN.mu * 1e-3
+    a, _ = MINDLIN.theory(P)
+    x = np.linspace(-a, a, 200001)
+    q = MINDLIN.traction_theory(x, P, Q)
+    assert np.trapezoid(q, x) == pytest.approx(Q, rel=1e-4)
+    c = MINDLIN.stick_theory(P, Q)
+    outside = np.abs(x) > c  # the slip annulus carries μp
+    _, p0 = MINDLIN.theory(P)
+    p = p0 * np.sqrt(np.clip(1 - (x / a) ** 2, 0, None))
+    assert np.allclose(q[outside], MINDLIN.mu * p[outside], atol=1e-12)
+
+
+def test_a_tangential_path_presses_as_its_normal_protocol_and_moves_along_x():
+    normal = RampHold(depth=0.5, ramp_time=0.5, end_time=1.5)
+    path = TangentialPath(normal, PiecewiseLinear((0.0, 0.5, 1.2), (0.0, 0.0, 1.0)))
+    assert isinstance(path, LoadHistory)
+    for t in (0.0, 0.25, 0.5, 1.0, 1.5):
+        assert path(t) == normal(t)
+    assert path.end_time == 1.5 and path.deepest == 0.5
+    assert path.tangential_at(0.5) == 0.0 and path.tangential_at(0.85) == pytest.approx(0.5)
+    assert path.tangential_at(1.5) == 1.0  # held after its last point
+    assert path.breakpoints == (0.0, 0.5, 1.2, 1.5)  # the stepper lands on both parts' kinks
+    with pytest.raises(InputError, match="after the protocol's end"):
+        TangentialPath(normal, PiecewiseLinear((0.0, 2.0), (0.0, 1.0)))
+
+
+def shear_run(mu: float) -> list:
+    """A plate pressed 0.5 mm into the coarse 2D pulp in 0.5 s, then dragged 1 mm along x in
+    1 s (the stepper's own steps of <= 0.1 s)."""
+    import dataclasses
+
+    from fingertip_dolfinx.geometry.indenters import load_indenter
+    from fingertip_dolfinx.geometry.mesh import build_mesh
+    from fingertip_dolfinx.geometry.section import load_section
+    from fingertip_dolfinx.problem import FingertipProblem
+    from fingertip_dolfinx.stepping import StepOptions, TimeStepper
+
+    section = load_section("male-index")
+    section = dataclasses.replace(section, mesh=dataclasses.replace(
+        section.mesh, min_size=0.25, max_size=1.5, bone_size=2.0, refine_half_width=4.0,
+        refine_depth=1.0))
+    history = TangentialPath(RampHold(depth=0.5, ramp_time=0.5, end_time=1.5),
+                             PiecewiseLinear((0.0, 0.5, 1.5), (0.0, 0.0, 1.0)))
+    problem = FingertipProblem(build_mesh(section, MPI.COMM_WORLD), [load_indenter("plate")],
+                               history, friction=mu)
+    stepper = TimeStepper(problem, StepOptions(dt_initial=0.1, dt_max=0.1),
+                          prefix=f"shear_{mu}_".replace(".", "_"))
+    reports = stepper.run(history, history.end_time)
+    stepper.close()
+    return reports
+
+
+@pytest.mark.slow
+def test_a_plate_dragged_over_the_pulp_sticks_partly_then_slips_at_mu_times_the_load():
+    mu = 0.5
+    reports = shear_run(mu)
+    ratios = np.array([abs(r.diagnostics["tangential_force_N_per_mm"])
+                       / (mu * abs(r.diagnostics["force_N_per_mm"])) for r in reports])
+    assert np.all(ratios <= 1 + 1e-6), ratios.max()  # Coulomb's bound at every step
+    assert np.any((ratios > 0.1) & (ratios < 0.9))  # a partial-stick phase before gross slip
+    assert ratios[-1] == pytest.approx(1.0, abs=0.02)  # gross slip at the end
+    for r in reports:  # the friction's y-share counted: the support balances the indenter
+        d = r.diagnostics
+        assert d["force_N_per_mm"] == pytest.approx(d["reaction_N_per_mm"], rel=1e-5)
+
+
+def test_friction_is_indenter_data_and_the_shear_scene_drags_a_plate():
+    from fingertip_dolfinx.geometry.indenters import make_indenter
+    from fingertip_dolfinx.loading import history_from_dict
+    from fingertip_dolfinx.scene import load_scene, scene_record
+
+    with pytest.raises(InputError, match="friction"):
+        make_indenter({"shape": "plate", "friction": -0.2})
+    scene = load_scene("shear")
+    assert scene.indenters[0].friction == 0.5
+    record = scene_record(scene)
+    assert record["indenters"][0]["friction"] == 0.5  # summary.json records μ
+    back = history_from_dict(dict(record["protocol"]))  # the record reads back
+    assert back.tangential_at(1.0) == scene.history.tangential_at(1.0) == 0.5
+    # a frictionless scene's record is as before: its runs still resume
+    assert "friction" not in scene_record(load_scene("1pt"))["indenters"][0]
+
+
+def test_a_resume_with_another_tangential_path_is_refused(tmp_path):
+    from fingertip_dolfinx.outputs import check_resume
+    from fingertip_dolfinx.scene import load_scene, scene_record
+
+    old = scene_record(load_scene("shear"))
+    new = scene_record(load_scene("shear", {"protocol": {"tangential": {
+        "times": [0.0, 0.5, 1.5], "values": [0.0, 0.0, 2.0]}}}))
+    with pytest.raises(InputError, match="tangential"):
+        check_resume(old, new, 1.0, tmp_path)
+    check_resume(old, new, 0.5, tmp_path)  # the same path up to 0.5 s: allowed
+
+
+def test_a_half_model_is_not_dragged_across_its_symmetry_plane():
+    from types import SimpleNamespace
+
+    from fingertip_dolfinx.problem import check_tangential
+
+    path = TangentialPath(RampHold(depth=0.5, ramp_time=0.5, end_time=1.5),
+                          PiecewiseLinear((0.0, 0.5, 1.5), (0.0, 0.0, 1.0)))
+    half = SimpleNamespace(names={"symmetry": 7, "pulp_surface": 1})
+    with pytest.raises(InputError, match="half model"):
+        check_tangential(half, path)
+    check_tangential(half, path.normal)  # pressing a half model stays as it was
+    check_tangential(SimpleNamespace(names={"pulp_surface": 1}), path)  # a 2D section
