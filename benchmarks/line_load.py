@@ -170,9 +170,10 @@ def main():
 
 class NewtonLog:
     """Newton's iterations as the contact sees them: a SNES monitor that prints the residual
-    norm, the surface quadrature points in contact (`NitscheContact.active_set`) and how many
-    entered or left it since the last iterate; `summary` gives per step the iterations and
-    the changes (the table of docs/benchmarks/contact-newton.md)."""
+    norm, the surface quadrature points in contact (`NitscheContact.active_set`), how many
+    entered or left since the last iterate, and how much of the residual sits on a few nodes
+    (where); `summary` gives per step the iterations and the changes (the tables of
+    docs/benchmarks/contact-newton.md)."""
 
     def __init__(self, job: Run):
         self.problem, self.comm, self.steps = job.problem, job.comm, {}
@@ -188,9 +189,24 @@ class NewtonLog:
         t = self.problem.time
         its, changes = self.steps.get(t, (0, 0))
         self.steps[t] = (max(its, it), changes + changed)  # a cut attempt's are overwritten
+        share, where = self._largest(snes.getFunction()[0], norm)
         if self.comm.rank == 0:
             print(f"  t = {t:.6g} s, iteration {it}: |F| {norm:.3e} N/mm, contact points "
-                  f"{total}" + (f", {changed} entered or left" if it else ""), flush=True)
+                  f"{total}" + (f", {changed} entered or left" if it else "")
+                  + f"; {share:.0%} of |F| on {self.NODES} nodes, the largest at "
+                  f"({where[0]:.3f}, {where[1]:.3f}) mm", flush=True)
+
+    NODES = 4  # the residual's share on this many nodes tells whether it is local
+
+    def _largest(self, residual, norm: float) -> tuple[float, tuple]:
+        """The share of the residual norm on the NODES displacement nodes with the largest
+        residual force, and the reference position of the largest."""
+        n, d = self.problem.V.dofmap.index_map.size_local, self.problem.gdim
+        nodal = np.linalg.norm(residual.getArray(readonly=True)[: d * n].reshape(-1, d), axis=1)
+        top = np.sort(np.concatenate(self.comm.allgather(np.sort(nodal)[-self.NODES:])))
+        share = float(np.sqrt(np.sum(top[-self.NODES:] ** 2)) / norm) if norm > 0 else 0.0
+        where = self.problem.residual_hotspot(residual)
+        return share, (np.nan, np.nan) if where is None else tuple(where)
 
     def summary(self):
         print("time (s) | Newton iterations | contact points entered or left")
