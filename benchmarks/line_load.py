@@ -30,16 +30,18 @@ its own bound 4.5-4.6 in repeated runs): with the bt line search taking full ste
 3.7e-4, 1.3e-4, 5.8e-5, 1.1e-5, 2.0e-6 N/mm over the last ramp step), while the Jacobian is
 exact: J d equals the residual's central difference to O(ε²) mid-ramp
 (tests/test_line_load.py). `--newton` shows where (2026-11-26): from the second iteration on
-70-99 % of the residual sits on the few surface nodes at the edge of the contact zone, where the
-skin lies along the wedge's flank at gaps of +-0.1 um and almost no pressure (grazing: g = 0
-and p = 0 at once). Newton moves them across the law's kink, or through its 0.1 um smoothing
+70-99 % of the residual sits on four surface nodes at the edge of the contact zone, where the
+skin lies along the wedge's flank at gaps of ±0.1 µm and almost no pressure (grazing: g ≈ 0
+and p ≈ 0 at once). Newton moves them across the law's kink, or through its 0.1 µm smoothing
 band, and the next iteration undoes it; iterations that leave the penetrating set unchanged
-are as slow. Semismooth Newton (what newtonls with the exact Jacobian of [.]_+ is) and
-primal-dual active sets are superlinear only where complementarity is strict, and an
-augmented Lagrangian has the same kink at these points (lambda = 0 there): none was expected to
-reach 2.5, and the measured variants did not: no smoothing 4.8, gamma0 = 30 4.7 (force -0.65 %),
-gamma0 = 10 fails at the tip, shorter ramp steps (easy_iterations 3) 4.05 with 92 instead of
-83 factorisations, a damped predictor 11.3 (docs/benchmarks/contact-newton.md has the table).
+are as slow. Semismooth Newton (what newtonls with the exact Jacobian of [·]_+ is) and
+primal-dual active sets are superlinear only once every point is on the right side of the
+kink, which at grazing points takes gaps resolved to nanometres; an augmented Lagrangian has
+the same kink there (λ = 0). The measured variants: no smoothing 4.8; γ0 = 30 4.7 (force
+-0.65 %); γ0 = 10 fails at the tip; shorter ramp steps (easy_iterations 3) 4.05 with 92
+instead of 83 factorisations; a damped predictor 11.3; 20 µm surface elements over 0.1 or
+0.4 mm around the tip instead of 0.25: 131 and 106 Newton iterations instead of 89
+(docs/benchmarks/contact-newton.md has the table).
 Tried earlier on the preset (Newton its / LU / stepping CPU over the bound): l2 and cp
 line searches 87 / 79-95 / 5.4; newtontr 100 / 109 / 5.5; quasi-Newton (L-BFGS scaled by the
 Jacobian) 262 its, 13 cuts, 5.3; Broyden: PETSc error 73; Anderson or NGMRES around one Newton
