@@ -40,8 +40,10 @@ kink, which at grazing points takes gaps resolved to nanometres; an augmented La
 the same kink there (λ = 0). The measured variants: no smoothing 4.8; γ0 = 30 4.7 (force
 -0.65 %); γ0 = 10 fails at the tip; shorter ramp steps (easy_iterations 3) 4.05 with 92
 instead of 83 factorisations; a damped predictor 11.3; 20 µm surface elements over 0.1 or
-0.4 mm around the tip instead of 0.25: 131 and 106 Newton iterations instead of 89
-(docs/benchmarks/contact-newton.md has the table).
+0.4 mm around the tip instead of 0.25: 131 and 106 Newton iterations instead of 89; the
+residual's own law but the Jacobian of a wider smoothing (0.3, 1 µm): fails at first touch, of
+the exact kink: 313 ramp iterations instead of 72 (docs/benchmarks/contact-newton.md has the
+table).
 Tried earlier on the preset (Newton its / LU / stepping CPU over the bound): l2 and cp
 line searches 87 / 79-95 / 5.4; newtontr 100 / 109 / 5.5; quasi-Newton (L-BFGS scaled by the
 Jacobian) 262 its, 13 cuts, 5.3; Broyden: PETSc error 73; Anderson or NGMRES around one Newton
