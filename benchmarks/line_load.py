@@ -29,8 +29,22 @@ its own bound 4.5-4.6 in repeated runs): with the bt line search taking full ste
 `snes_linesearch_monitor`) the residual falls by ~0.3 per iteration (e.g. 8.8e-3, 1.0e-3,
 3.7e-4, 1.3e-4, 5.8e-5, 1.1e-5, 2.0e-6 N/mm over the last ramp step), while the Jacobian is
 exact: J d equals the residual's central difference to O(ε²) mid-ramp
-(tests/test_line_load.py). So the contact set changes between iterates as the zone grows
-around the tip. Tried on the preset (Newton its / LU / stepping CPU over the bound): l2 and cp
+(tests/test_line_load.py). `--newton` shows where (2026-11-26): from the second iteration on
+70-99 % of the residual sits on four surface nodes at the edge of the contact zone, where the
+skin lies along the wedge's flank at gaps of ±0.1 µm and almost no pressure (grazing: g ≈ 0
+and p ≈ 0 at once). Newton moves them across the law's kink, or through its 0.1 µm smoothing
+band, and the next iteration undoes it; iterations that leave the penetrating set unchanged
+are as slow. Semismooth Newton (what newtonls with the exact Jacobian of [·]_+ is) and
+primal-dual active sets are superlinear only once every point is on the right side of the
+kink, which at grazing points takes gaps resolved to nanometres; an augmented Lagrangian has
+the same kink there (λ = 0). The measured variants: no smoothing 4.8; γ0 = 30 4.7 (force
+-0.65 %); γ0 = 10 fails at the tip; shorter ramp steps (easy_iterations 3) 4.05 with 92
+instead of 83 factorisations; a damped predictor 11.3; 20 µm surface elements over 0.1 or
+0.4 mm around the tip instead of 0.25: 131 and 106 Newton iterations instead of 89; the
+residual's own law but the Jacobian of a wider smoothing (0.3, 1 µm): fails at first touch, of
+the exact kink: 313 ramp iterations instead of 72 (docs/benchmarks/contact-newton.md has the
+table).
+Tried earlier on the preset (Newton its / LU / stepping CPU over the bound): l2 and cp
 line searches 87 / 79-95 / 5.4; newtontr 100 / 109 / 5.5; quasi-Newton (L-BFGS scaled by the
 Jacobian) 262 its, 13 cuts, 5.3; Broyden: PETSc error 73; Anderson or NGMRES around one Newton
 step: DIVERGED_INNER at the first touch; contact smoothing 1 µm instead of 0.1 µm 77 / 87 /
@@ -45,7 +59,7 @@ final state, for one Jacobian + LU + solve, the bound in CPU time. `--reference
 accuracy.json` scores the key outputs against an accuracy study's reference.
 
     .venv/bin/python benchmarks/line_load.py [--scene line-load] [--set key=value ...]
-        [--reference docs/results/adaptivity/check-line-load-full/accuracy.json]
+        [--reference docs/results/adaptivity/check-line-load-full/accuracy.json] [--newton]
     .venv/bin/mpiexec -n 2 .venv/bin/python benchmarks/line_load.py
 """
 
@@ -56,6 +70,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 from timing import tally
@@ -76,6 +91,10 @@ def main():
     parser.add_argument("--scene", default="line-load")
     parser.add_argument("--set", dest="overrides", action="append", default=[])
     parser.add_argument("--out", type=Path, default=None, help="keep the results here")
+    parser.add_argument("--newton", action="store_true",
+                        help="print each Newton iteration's residual norm and contact points "
+                             "(active, and entered or left since the last iterate), then "
+                             "Newton iterations and contact changes per step")
     parser.add_argument("--reference", type=Path, default=None, metavar="JSON",
                         help="an accuracy study's accuracy.json: print each key output's "
                              "relative error against its reference, e.g. docs/results/"
@@ -89,6 +108,7 @@ def main():
     started, cpu = time.perf_counter(), time.process_time()
     job = Run(scene, out, comm, resume=False, progress=False)
     writing = tally(job, "on_step")  # the results written after each step, pictures too
+    newton = NewtonLog(job) if args.newton else None
     stepping, stepping_cpu = time.perf_counter(), time.process_time()
     job.run()
     stepping, stepping_cpu = (time.perf_counter() - stepping,
@@ -146,8 +166,56 @@ def main():
     print("force at output times: " + ", ".join(f"{k} s {v:.6g} N/mm" for k, v in forces.items()))
     print(f"peak force {summary['peak_force_N_per_mm']:.6g} N/mm; max penetration "
           f"{1e3 * summary['max_penetration_mm']:.3g} µm; results in {out}")
+    if newton is not None:
+        newton.summary()
     if args.reference is not None:
         _score(out, args.reference)
+
+
+class NewtonLog:
+    """Newton's iterations as the contact sees them: a SNES monitor that prints the residual
+    norm, the surface quadrature points in contact (`NitscheContact.active_set`), how many
+    entered or left since the last iterate, and how much of the residual sits on a few nodes
+    (where); `summary` gives per step the iterations and the changes (the tables of
+    docs/benchmarks/contact-newton.md)."""
+
+    def __init__(self, job: Run):
+        self.problem, self.comm, self.steps = job.problem, job.comm, {}
+        self._last = None
+        job.stepper.snes.setMonitor(self)
+
+    def __call__(self, snes, it: int, norm: float):
+        active = self.problem.contact.active_set()
+        changed = -1 if it == 0 or self._last is None else int(np.sum(active != self._last))
+        self._last = active
+        total = self.comm.allreduce(int(active.sum()), op=MPI.SUM)
+        changed = self.comm.allreduce(changed, op=MPI.SUM) if it else 0
+        t = self.problem.time
+        its, changes = self.steps.get(t, (0, 0))
+        self.steps[t] = (max(its, it), changes + changed)  # a cut attempt's are overwritten
+        share, where = self._largest(snes.getFunction()[0], norm)
+        if self.comm.rank == 0:
+            print(f"  t = {t:.6g} s, iteration {it}: |F| {norm:.3e} N/mm, contact points "
+                  f"{total}" + (f", {changed} entered or left" if it else "")
+                  + f"; {share:.0%} of |F| on {self.NODES} nodes, the largest at "
+                  f"({where[0]:.3f}, {where[1]:.3f}) mm", flush=True)
+
+    NODES = 4  # the residual's share on this many nodes tells whether it is local
+
+    def _largest(self, residual, norm: float) -> tuple[float, tuple]:
+        """The share of the residual norm on the NODES displacement nodes with the largest
+        residual force, and the reference position of the largest."""
+        n, d = self.problem.V.dofmap.index_map.size_local, self.problem.gdim
+        nodal = np.linalg.norm(residual.getArray(readonly=True)[: d * n].reshape(-1, d), axis=1)
+        top = np.sort(np.concatenate(self.comm.allgather(np.sort(nodal)[-self.NODES:])))
+        share = float(np.sqrt(np.sum(top[-self.NODES:] ** 2)) / norm) if norm > 0 else 0.0
+        where = self.problem.residual_hotspot(residual)
+        return share, (np.nan, np.nan) if where is None else tuple(where)
+
+    def summary(self):
+        print("time (s) | Newton iterations | contact points entered or left")
+        for t, (its, changes) in sorted(self.steps.items()):
+            print(f"{t:.6g} | {its} | {changes}")
 
 
 def _score(out: Path, reference: Path):

@@ -169,3 +169,28 @@ def test_only_conservative_contact_laws_have_a_symmetric_tangent(method, theta, 
     assert contact.conservative == conservative
     assert K.norm() > 0  # the tip is in contact
     assert (ratio < 1e-10) == conservative, ratio
+
+
+def test_active_set_is_the_quadrature_points_inside_the_indenter():
+    # With u = 0 the penalty law is active exactly where the reference surface lies inside the
+    # indenter, g < 0. A round-tipped bar pressed 0.02 mm into the bottom of a block: the count
+    # of active points must equal the points the NumPy distance puts inside, at the same
+    # points (the contact's facet rule: 4 Gauss points per facet for P2, degree 6), and the
+    # rule must hold every surface facet's points.
+    from dolfinx.mesh import create_rectangle
+
+    domain = create_rectangle(MPI.COMM_WORLD, [[-1.0, 0.0], [1.0, 1.0]], [16, 8])
+    u = fem.Function(fem.functionspace(domain, ("Lagrange", 2, (2,))))
+    bar = Obstacle.at(domain, Bar(width=1.0, centre_x=0.1), y_tip=0.02)
+    contact = NitscheContact(u, HERTZ.stress(u), ufl.ds, [bar], modulus=HERTZ.modulus,
+                             method="penalty")
+    active = contact.active_set()
+    assert active.size == 4 * len(contact.facets)
+    entities = contact._facet_entities  # (cell, local facet) pairs, in the same order
+    points = fem.Expression(ufl.SpatialCoordinate(domain), np.array(
+        [[0.0694318442029737], [0.3300094782075719], [0.6699905217924281],
+         [0.9305681557970263]]))
+    x = points.eval(domain, entities).reshape(-1, 2)
+    inside = bar.indenter.signed_distance_np(x, 0.02)[0] < 0
+    assert 0 < active.sum() < active.size
+    assert np.array_equal(active, inside)

@@ -43,6 +43,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
 
+import basix
 import numpy as np
 import ufl
 from dolfinx import fem
@@ -148,6 +149,7 @@ class NitscheContact:
         # between the residual and its derivative, which makes the Jacobian inexact.
         degree = quadrature_degree or 2 * u.function_space.ufl_element().embedded_superdegree + 2
         self.u, self.ds, self.theta, self.method = u, ds(degree=degree), theta, method
+        self.quadrature_degree = degree
         self.obstacles = tuple(obstacles)
         h = ufl.CellDiameter(domain) if h is None else h
         self.gamma = gamma0 * modulus / h
@@ -268,6 +270,37 @@ class NitscheContact:
         )
         return V.mesh.comm.allreduce(depth, op=MPI.MAX)
 
+    def active_set(self) -> np.ndarray:
+        """Which of this rank's surface quadrature points are in contact, t_n − γ g > 0: one
+        bool per point of the facet rule the contact integrates with (basix's default rule of
+        `quadrature_degree`, FFCx's), facet after facet in the order of `facets`.
+
+        The order is fixed, so comparing two iterates shows how many points entered or left
+        the contact zone (benchmarks/line_load.py --newton prints it per Newton iteration).
+        With smoothing the pressure is never exactly 0: this counts the penetrating points.
+        """
+        return self._trial_at_quadrature() > 0
+
+    @cached_property
+    def _trial_at_quadrature(self):
+        domain = self.u.function_space.mesh
+        fdim = domain.topology.dim - 1
+        facet = domain.topology.entity_types[fdim][0]  # interval (2D) or triangle (3D)
+        points, _ = basix.make_quadrature(basix.CellType[facet.name], self.quadrature_degree)
+        compiled = fem.Expression(self.trial_pressure, points)
+        entities = self._facet_entities
+
+        return lambda: compiled.eval(domain, entities).ravel()
+
+    @cached_property
+    def _facet_entities(self) -> np.ndarray:
+        """(cell, local facet) pairs of this rank's contact facets."""
+        domain = self.u.function_space.mesh
+        tdim = domain.topology.dim
+        domain.topology.create_connectivity(tdim, tdim - 1)
+        return fem.compute_integration_domains(
+            fem.IntegralType.exterior_facet, domain.topology, self.facets).reshape(-1, 2)
+
     def surface_sampler(self, expr, points_per_facet: int = 5):
         """A function returning (X, values) of the vector or scalar UFL `expr` at points on
         this rank's owned surface facets: X (m, gdim) reference coordinates, values (m, ...).
@@ -275,10 +308,7 @@ class NitscheContact:
         2D; in 3D the lattice of the triangle). The expression is compiled once, here."""
         domain = self.u.function_space.mesh
         tdim = domain.topology.dim
-        domain.topology.create_connectivity(tdim, tdim - 1)
-        entities = fem.compute_integration_domains(
-            fem.IntegralType.exterior_facet, domain.topology, self.facets
-        ).reshape(-1, 2)
+        entities = self._facet_entities
         X = ufl.SpatialCoordinate(domain)
         gdim = domain.geometry.dim
         shape = expr.ufl_shape
