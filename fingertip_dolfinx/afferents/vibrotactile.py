@@ -66,9 +66,11 @@ PC's as 1/f² without end; any U shape must come from the mechanics' H.
 discrete-time models at 5 kHz with their own low-pass and post-spike current, so no closed
 form per piece; `saal_thresholds_stimulus` simulates every (lane, fit) on s0 + a sin θ (after
 SAAL_SETTLE, counting at least SAAL_COUNT seconds) and bisects the amplitude geometrically per
-lane (SAAL_BISECTIONS rounds, 1 %). Per site the most sensitive fit counts. Fed TouchSim's own
-quasi-static mechanics they have the classic tuning (PC I1 lowest near 200 Hz, RA near 30 Hz,
-SA1 below 10 Hz; tests/test_vibrotactile.py).
+lane (SAAL_BISECTIONS rounds, 1 %); the stages before the rectification are linear in the
+amplitude and run once per lane (`SineLanes`), and the neuron is a linear filter until its first
+spike (`transduction.integrate_and_fire`). Per site the most sensitive fit counts. Fed
+TouchSim's own quasi-static mechanics they have the classic tuning (PC I1 lowest near 200 Hz,
+RA near 30 Hz, SA1 below 10 Hz; tests/test_vibrotactile.py).
 """
 
 from __future__ import annotations
@@ -80,7 +82,15 @@ import numpy as np
 
 from ..errors import InputError
 from .receptors import LIF, ReceptorClass, rectified_input, saturate
-from .transduction import Afferents, site_inputs, spike_flags
+from .transduction import (
+    Afferents,
+    integrate_and_fire,
+    lowpass,
+    rectified,
+    saturated,
+    site_inputs,
+    spike_flags,
+)
 
 SAMPLES = 64  # samples of J per cycle (divisible by 4): J interpolation error <= 1.2e-3 relative
 SETTLE = 3  # cycles discarded at least (more for slow membranes, see _settle)
@@ -456,18 +466,69 @@ def saal_cycle_counts(aff: Afferents, frequency, a, s0, scale: float, kappa: flo
     (`site_inputs`: central differences, as its fits were made); cycles counted after
     SAAL_SETTLE, max(SAAL_CYCLES, SAAL_COUNT f) of them."""
     f = np.asarray(frequency, dtype=float)
-    counted = _saal_counted(f)
-    steps = int(math.ceil((SAAL_SETTLE + np.max(counted / f)) * aff.fs)) + 1
-    t = np.arange(steps) / aff.fs
+    t, cycle, inside = _saal_clock(f, aff.fs)
     s = s0[:, None] + a[:, None] * np.sin(2 * np.pi * f[:, None] * t[None, :])
     flags = spike_flags(aff, *site_inputs(s, aff.fs, scale, kappa))
+    return _saal_tally(flags, cycle, inside, _saal_counted(f))
+
+
+def _saal_clock(f, fs: float):
+    """The samples' times (T,) of lanes of frequencies f (long enough for the slowest lane),
+    each sample's counted cycle (n, T) and whether it is counted (n, T)."""
+    counted = _saal_counted(f)
+    steps = int(math.ceil((SAAL_SETTLE + np.max(counted / f)) * fs)) + 1
+    t = np.arange(steps) / fs
     cycle = np.floor((t[None, :] - SAAL_SETTLE) * f[:, None]).astype(int)
-    inside = (cycle >= 0) & (cycle < counted[:, None])
-    counts = np.zeros((len(f), counted.max()))
+    return t, cycle, (cycle >= 0) & (cycle < counted[:, None])
+
+
+def _saal_tally(flags, cycle, inside, counted):
+    """(total, fewest per counted cycle) of spike flags (n, T)."""
+    counts = np.zeros((len(flags), counted.max()))
     lane, k = np.nonzero(flags & inside)
     np.add.at(counts, (lane, cycle[lane, k]), 1)
     unused = np.arange(counted.max())[None, :] >= counted[:, None]
     return counts.sum(axis=1), np.where(unused, np.inf, counts).min(axis=1)
+
+
+class SineLanes:
+    """`saal_cycle_counts` of fixed lanes (fit, f, s0) at any amplitudes, with the work that
+    does not depend on the amplitude done once. Everything before the rectification is linear
+    in the stimulus (central differences, the low-pass), so the filtered inputs are
+    S0 + a·S1 (static; S0 of s0 alone, S1 of the unit sine) and a·U (dynamic); a > 0 passes
+    through the rectification of the dynamic terms, whose current is a·D. Each amplitude then
+    costs the static terms (classes with a static weight), the saturation, the neuron and the
+    tally: the same numbers as `saal_cycle_counts` up to round-off."""
+
+    def __init__(self, aff: Afferents, frequency, s0, scale: float, kappa: float):
+        f, s0 = np.asarray(frequency, dtype=float), np.asarray(s0, dtype=float)
+        self.aff, self.counted = aff, _saal_counted(f)
+        self.t, self.cycle, self.inside = _saal_clock(f, aff.fs)
+        unit = np.sin(2 * np.pi * f[:, None] * self.t[None, :])
+        s1, u1 = site_inputs(unit, aff.fs, scale, kappa)
+        dynamic_weights = aff.weights * np.array([0, 0, 1, 1, 1, 1])
+        self.dynamic = rectified(dynamic_weights, np.zeros_like(u1),
+                                 lowpass(u1, aff.cutoff_Hz, aff.fs))
+        self.static_weights = aff.weights[:, :2]
+        self.static = None
+        if np.any(self.static_weights):  # SA1: TouchSim filters its static input only
+            s00 = site_inputs(np.broadcast_to(s0[:, None], unit.shape), aff.fs, scale, kappa)[0]
+            sa1 = aff.cls == "SA1"
+            s00[sa1] = lowpass(s00[sa1], aff.cutoff_Hz[sa1], aff.fs)
+            s1[sa1] = lowpass(s1[sa1], aff.cutoff_Hz[sa1], aff.fs)
+            self.static = (s00, s1)
+
+    def counts(self, a):
+        """(total, fewest per counted cycle) per lane at amplitudes a (n,) > 0."""
+        a = np.asarray(a, dtype=float)[:, None]
+        current = self.dynamic * a
+        if self.static is not None:
+            s = self.static[0] + a * self.static[1]
+            p = self.static_weights
+            current += p[:, :1] * np.maximum(s, 0.0) + p[:, 1:] * np.maximum(-s, 0.0)
+        j = saturated(current, self.aff.saturation)
+        flags = integrate_and_fire(j, self.aff.tau, self.aff.post_spike, self.aff.refractory)
+        return _saal_tally(flags, self.cycle, self.inside, self.counted)
 
 
 def _saal_search(aff, f, s0, scale, kappa):
@@ -480,9 +541,10 @@ def _saal_search(aff, f, s0, scale, kappa):
     entrain = np.arange(2 * len(f)) >= len(f)
     lo = np.full(2 * len(f), SAAL_RANGE[0] / scale)
     hi = np.full(2 * len(f), SAAL_RANGE[1] / scale)
+    lanes = SineLanes(both, f2, s02, scale, kappa)
 
     def meets(a):
-        total, fewest = saal_cycle_counts(both, f2, a, s02, scale, kappa)
+        total, fewest = lanes.counts(a)
         return np.where(entrain, fewest >= 1, total > 0)
 
     top, bottom = meets(hi), meets(lo)
