@@ -145,10 +145,10 @@ def test_the_linear_start_gives_the_stepped_neurons_spikes(fits):
 def test_reproduces_touchsim_spike_for_spike(fits):
     """Fed TouchSim's own input at the afferent (static c_s·trace, dynamic c_u·d(trace)/dt,
     reconstructed to 1e-13 of TouchSim's `propagate`, error stored with the data), all 17 fits
-    give TouchSim's spike samples exactly (noise off) on its 16 reference stimuli: the model is
+    give TouchSim's spike samples exactly (noise off) on its 18 reference stimuli: the model is
     the same discrete-time system, so the tolerance is zero spikes and zero samples."""
     ref = json.loads(REFERENCE.read_text())
-    assert len(ref["stimuli"]) == 16
+    assert len(ref["stimuli"]) == 18
     total = 0
     for rec in ref["stimuli"]:
         assert max(v["relative_error"] for v in rec["input"].values()) < 1e-13

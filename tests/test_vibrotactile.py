@@ -364,3 +364,26 @@ def test_the_fast_threshold_search_keeps_the_thresholds(name):
     step = (vt.SAAL_RANGE[1] / vt.SAAL_RANGE[0]) ** (2.0 ** -vt.SAAL_BISECTIONS)
     np.testing.assert_allclose(a0, i0, rtol=step - 1)
     np.testing.assert_allclose(a1, i1, rtol=step - 1)
+
+
+def test_touchsims_own_curves_are_the_search_on_its_mechanics_and_are_drawn(tmp_path):
+    """data/receptors/touchsim_thresholds.csv holds TouchSim's thresholds: its fits through the
+    search with its own input per mm of pin motion (c_s from TouchSim's `propagate`, α = 1);
+    recomputed at three frequencies per class, equal to the file's 6 digits. The threshold
+    figure draws them, one legend entry per class."""
+    import json
+    from pathlib import Path
+
+    ref = json.loads((Path(__file__).parent / "data" / "touchsim_reference.json").read_text())
+    c_s = next(r for r in ref["stimuli"] if r["pin_radius"] == 0.5)["input"]
+    curves = vt.touchsim_thresholds()
+    assert set(curves) == {"SA1", "RA", "PC"}
+    for name, (f, i0, i1) in curves.items():
+        pick = [4, 20, 33]  # 2.0, 35 and 346 Hz
+        a0, a1 = vt.saal_thresholds_stimulus(_touchsim_class(name), f[pick], 0.0)
+        np.testing.assert_allclose(a0 / c_s[name]["c_s"], i0[pick], rtol=1e-5)
+        np.testing.assert_allclose(a1 / c_s[name]["c_s"], i1[pick], rtol=1e-5)
+    th = vt.vibration_thresholds(_touchsim_class("PC"), f[::8], np.ones((5, 1)), np.zeros(1))
+    legend = vt.plot_threshold_curves([th], tmp_path / "thresholds.png")
+    assert "PC TouchSim (Saal et al. 2017)" in legend
+    assert not any(entry.startswith("RA TouchSim") for entry in legend)  # only classes drawn

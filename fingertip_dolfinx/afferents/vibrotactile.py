@@ -80,6 +80,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..datafiles import builtin_dir
 from ..errors import InputError
 from .receptors import LIF, ReceptorClass, rectified_input, saturate
 from .transduction import (
@@ -691,8 +692,41 @@ def _published_handle(p: Published, colour):
         f"{_short_source(p.source)})"))
 
 
+def touchsim_thresholds() -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """TouchSim's own thresholds per class: (frequency Hz, I0 mm, I1 mm), the most sensitive of
+    its fits under its 0.5 mm pin about rest (data/receptors/touchsim_thresholds.csv, made by
+    scripts/calibrate_afferents.py --touchsim-curves; its source in the file's header)."""
+    path = builtin_dir("receptors") / "touchsim_thresholds.csv"
+    rows = [line.split(",") for line in path.read_text().splitlines()
+            if line and not line.startswith("#")][1:]
+    out = {}
+    for name in dict.fromkeys(r[0] for r in rows):
+        values = np.array([[float(x) for x in r[1:]] for r in rows if r[0] == name])
+        out[name] = (values[:, 0], values[:, 1] * 1e-3, values[:, 2] * 1e-3)
+    return out
+
+
+def _touchsim_lines(ax, curves, colours) -> list:
+    """TouchSim's own I0 (thin solid) and I1 (dashed) per class of `curves`, over their
+    frequency range; one legend handle per class."""
+    from matplotlib.lines import Line2D
+
+    reference, handles = touchsim_thresholds(), []
+    for th in curves:
+        if th.name not in reference:
+            continue
+        f, i0, i1 = reference[th.name]
+        keep = (f >= th.frequency.min() / 1.2) & (f <= th.frequency.max() * 1.2)
+        c = colours.get(th.name, "k")
+        ax.loglog(f[keep], i0[keep] * 1e3, "-", color=c, lw=0.8, alpha=0.6)
+        ax.loglog(f[keep], i1[keep] * 1e3, "--", color=c, lw=0.8, alpha=0.6)
+        handles.append(Line2D([], [], color=c, lw=0.8, ls="--", label=(
+            f"{th.name} TouchSim (Saal et al. 2017)")))
+    return handles
+
+
 def plot_threshold_curves(curves, path, *, published=PUBLISHED, title: str = "",
-                          note: str = "") -> list[str]:
+                          note: str = "", touchsim: bool = True) -> list[str]:
     """Threshold vs frequency, log-log, amplitudes in µm: per class (colour) the most
     sensitive site's absolute threshold I0 (filled circles) and 1:1 entrainment threshold I1
     (open triangles), at the computed frequencies only (markers: a line would pass across
@@ -701,6 +735,7 @@ def plot_threshold_curves(curves, path, *, published=PUBLISHED, title: str = "",
     over their band, each named in the legend below the axes. A missing marker: no threshold
     there (the pressed state alone fires the site, or it cannot follow 1:1). `note`: a
     warning written in red above the axes (the frequency route's resolution warning).
+    `touchsim`: TouchSim's own thresholds of the classes drawn as lines (`touchsim_thresholds`).
     `curves`: VibrationThresholds, one per class. Returns the legend's entries."""
     from matplotlib.figure import Figure
 
@@ -708,7 +743,7 @@ def plot_threshold_curves(curves, path, *, published=PUBLISHED, title: str = "",
 
     colours = {"SA1": "tab:blue", "RA": "tab:green", "PC": "tab:red",
                "psychophysics": "0.5"}
-    fig = Figure(figsize=(7.2, 7.0))
+    fig = Figure(figsize=(7.2, 7.6 if touchsim else 7.0))
     ax = fig.subplots()
     handles = []
     for th in curves:
@@ -719,6 +754,8 @@ def plot_threshold_curves(curves, path, *, published=PUBLISHED, title: str = "",
             keep = np.isfinite(y) & (y > 0)
             handles += ax.loglog(th.frequency[keep], y[keep], marker, color=c, mfc=fill, ms=5,
                                  ls="none", label=f"{th.name} {name}")
+    if touchsim:
+        handles += _touchsim_lines(ax, curves, colours)
     for p in published:
         c = colours.get(p.cls, "k")
         if p.band is None:
@@ -738,10 +775,12 @@ def plot_threshold_curves(curves, path, *, published=PUBLISHED, title: str = "",
     fig.legend(handles=handles, loc="lower center", bbox_to_anchor=(0.5, 0.025), fontsize=7,
                ncol=2, frameon=False)
     fig.text(0.5, 0.005, "markers: computed frequencies; no marker: no threshold there (the "
-             "pressed state alone fires, or the site cannot follow 1:1)", ha="center",
-             fontsize=7, color="0.3")
+             "pressed state alone fires, or the site cannot follow 1:1)" + (
+                 "\nlines: TouchSim's own fits on its half-space under its 0.5 mm pin, about "
+                 "rest: I1 dashed, I0 solid" if touchsim else ""),
+             ha="center", fontsize=7, color="0.3")
     if note:
         fig.text(0.5, 0.975, note, ha="center", va="top", fontsize=7, color="tab:red")
-    fig.tight_layout(rect=(0, 0.19, 1, 0.96 if note else 1))
+    fig.tight_layout(rect=(0, 0.23 if touchsim else 0.19, 1, 0.96 if note else 1))
     fig.savefig(path, dpi=150)
     return [h.get_label() for h in handles]
