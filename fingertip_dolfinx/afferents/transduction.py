@@ -140,6 +140,8 @@ def rectified(weights: np.ndarray, s: np.ndarray, u: np.ndarray) -> np.ndarray:
 def saturated(current: np.ndarray, saturation: np.ndarray) -> np.ndarray:
     """J = p7 I / (p7 + |I|) on the rows with p7 > 0; I elsewhere."""
     p7 = saturation[:, None]
+    if np.all(saturation > 0):  # every row saturates (a group of such fits): no 0/0 to guard
+        return p7 * current / (p7 + np.abs(current))
     with np.errstate(invalid="ignore", divide="ignore"):
         out = np.where(p7 > 0, p7 * current / (p7 + np.abs(current)), current)
     return np.nan_to_num(out, nan=0.0)
