@@ -140,6 +140,7 @@ def test_the_linear_start_gives_the_stepped_neurons_spikes(fits):
     want = tr._lif_steps(drive, aff.tau, aff.post_spike, 6, np.zeros(n))
     assert 0 < got.any(axis=1).sum() < n
     np.testing.assert_array_equal(got, want)
+    assert tr.integrate_and_fire(drive[:, :0], aff.tau, aff.post_spike, 6).shape == (n, 0)
 
 
 def test_reproduces_touchsim_spike_for_spike(fits):

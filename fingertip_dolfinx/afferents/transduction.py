@@ -159,6 +159,8 @@ def integrate_and_fire(j: np.ndarray, tau: np.ndarray, post_spike: np.ndarray,
     n, steps = j.shape
     j = np.asarray(j, dtype=float)
     spikes = np.zeros((n, steps), dtype=bool)
+    if not n * steps:
+        return spikes
     v_lin = np.empty_like(j)
     for t in np.unique(tau):  # one filter per membrane time constant
         rows = tau == t
