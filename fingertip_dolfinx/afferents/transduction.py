@@ -199,23 +199,25 @@ def _lif_steps(j: np.ndarray, tau: np.ndarray, post_spike: np.ndarray, refractor
     m = post_spike.shape[1]
     h = np.concatenate([post_spike, np.zeros((n, 1))], axis=1).ravel()  # column m: none
     base = np.arange(n) * (m + 1)
+    cap, ready = base + m, base + refractory
     leak = 1.0 - 1.0 / tau
     drive = np.ascontiguousarray(j.T)
     v = np.array(v0, dtype=float)
-    since = np.full(n, m)  # samples since the last spike, capped at m (none yet: m)
+    at = cap.copy()  # base + samples since the last spike, capped at m (none yet: m)
     spikes = np.zeros((steps, n), dtype=bool)
-    fire = np.empty(n, dtype=bool)
+    fire, free = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
     for k in range(steps):
         v *= leak
         v += drive[k]
-        v += h.take(base + since)
-        since += 1
-        np.minimum(since, m, out=since)
+        v += h.take(at)
+        at += 1
+        np.minimum(at, cap, out=at)
         np.greater(v, 1.0, out=fire)
-        fire &= since >= refractory
+        np.greater_equal(at, ready, out=free)
+        fire &= free
         spikes[k] = fire
         np.putmask(v, fire, 0.0)
-        np.putmask(since, fire, 0)
+        np.putmask(at, fire, base)
     return spikes.T
 
 
