@@ -11,7 +11,14 @@ a stand-in mechanics, printed and drawn.
    the pressed value. Writes thresholds.csv and thresholds.png (with the verified published
    bands) to the output directory (argument, default ./vibrotactile-benchmark).
 
+3. The frequency route's threshold search on a run (--route RUN: the --out directory of
+   `fingertip run vibrotactile --frequencies ...`): the search of every class of the run's
+   receptor set (the calibrated Saal et al. fits) redone from the run's thresholds.csv (its
+   H and s0 per site and frequency), timed per class (wall and CPU time), and checked against
+   the thresholds the run wrote (largest relative difference; 0 when the search is unchanged).
+
 Run: .venv/bin/python benchmarks/vibrotactile_thresholds.py [DIR]
+     .venv/bin/python benchmarks/vibrotactile_thresholds.py --route RUN
 """
 
 from __future__ import annotations
@@ -42,6 +49,44 @@ def speed() -> None:
         total += elapsed
         print(f"  {name}: 40 frequencies x 20 sites, I0 and I1: {elapsed:.1f} s")
     print(f"  all three classes: {total:.1f} s")
+
+
+def route_speed(run: Path) -> None:
+    """Time the threshold search of a frequency-route run's classes on its own H and s0."""
+    import json
+
+    from fingertip_dolfinx.afferents.receptors import receptors_from_dict
+    from fingertip_dolfinx.result import FrequencyResult
+
+    result = FrequencyResult(run)
+    population = receptors_from_dict(json.loads((run / "receptors.json").read_text()))
+    table, total = result.thresholds, 0.0
+    for cls in population.classes:
+        rows = table["class"] == cls.name
+        f, sites = np.unique(table["frequency_Hz"][rows]), np.unique(table["index"][rows])
+        at = (np.searchsorted(f, table["frequency_Hz"][rows]),
+              np.searchsorted(sites, table["index"][rows]))
+        h, i0, i1 = (np.zeros((len(f), len(sites))) for _ in range(3))
+        h[at], i0[at], i1[at] = (table[k][rows] for k in ("H_abs_per_um", "I0_um", "I1_um"))
+        s0 = np.zeros(len(sites))
+        s0[at[1]] = table["s0"][rows]
+        wall, cpu = time.perf_counter(), time.process_time()
+        th = vt.vibration_thresholds(cls, f, h * 1e3, s0)  # per µm -> per mm
+        wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+        total += wall
+        diff = max(_relative_difference(th.absolute * 1e3, i0),
+                   _relative_difference(th.entrainment * 1e3, i1))
+        print(f"  {cls.name}: {len(f)} frequencies x {len(sites)} sites: {wall:.1f} s wall, "
+              f"{cpu:.1f} s CPU; largest relative difference from the run's thresholds {diff:.1e}")
+    print(f"  all classes: {total:.1f} s wall")
+
+
+def _relative_difference(a, b) -> float:
+    """max |a/b - 1| over entries finite in both; inf if NaN or inf differ in place."""
+    if not np.array_equal(np.isfinite(a), np.isfinite(b)):
+        return float("inf")
+    ok = np.isfinite(a)
+    return float(np.max(np.abs(a[ok] / b[ok] - 1), initial=0.0))
 
 
 def stand_in_transfer(out: Path):
@@ -89,4 +134,7 @@ def main(out: Path) -> None:
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1] if len(sys.argv) > 1 else "vibrotactile-benchmark"))
+    if len(sys.argv) > 2 and sys.argv[1] == "--route":
+        route_speed(Path(sys.argv[2]))
+    else:
+        main(Path(sys.argv[1] if len(sys.argv) > 1 else "vibrotactile-benchmark"))

@@ -7,6 +7,8 @@ TouchSim, and write the agreement table and the residuals.
     PYTHONPATH=. python scripts/calibrate_afferents.py RUN [OUT]   # OUT: docs/results/afferents
     # TouchSim's own regression sinusoids (rates), on a run at --frequencies 10,25,250:
     PYTHONPATH=. python scripts/calibrate_afferents.py --rates RUN2
+    # TouchSim's own threshold curves (no run needed), overlaid on every thresholds.png:
+    PYTHONPATH=. python scripts/calibrate_afferents.py --touchsim-curves
 
 **What is matched.** TouchSim's mechanics under its default pin (radius 0.5 mm, a Sneddon
 half-space with no inertia) gives each class's input per mm of pin displacement, c_s
@@ -135,12 +137,48 @@ def test_sine_rates(run: Path) -> list[dict]:
     return out
 
 
+#: The overlay file of `vibrotactile.plot_threshold_curves` and its frequencies (Hz).
+CURVES = ROOT / "fingertip_dolfinx" / "data" / "receptors" / "touchsim_thresholds.csv"
+CURVE_FREQUENCIES = np.geomspace(1.0, 1000.0, 40)
+
+
+def touchsim_curves(path: Path = CURVES) -> None:
+    """TouchSim's own probe thresholds (µm) per class and frequency: the most sensitive of its
+    fits, its quasi-static mechanics under its 0.5 mm pin (input c_s per mm of pin motion,
+    the rate input κ c_s), about rest, through the package's threshold search (the same
+    discrete-time model, reproducing TouchSim spike for spike: tests/test_transduction.py)."""
+    population, gain = load_receptors("calibrated"), touchsim_gain()
+    lines = [f"# {line}" for line in CURVES_HEADER] + ["class,frequency_Hz,I0_um,I1_um"]
+    for cls in population.classes:
+        cls = dataclasses.replace(cls, saal=_touchsim_input(cls))
+        f = CURVE_FREQUENCIES
+        i0, i1 = (x / gain[cls.name] * 1e3 for x in saal_thresholds_stimulus(
+            cls, f, np.zeros_like(f)))
+        lines += [f"{cls.name},{f[j]:.6g},{i0[j]:.6g},{i1[j]:.6g}" for j in range(len(f))]
+    path.write_text("\n".join(lines) + "\n")
+    print(f"written: {path}")
+
+
+CURVES_HEADER = (
+    "TouchSim's own vibrotactile thresholds: Saal, Delhaye et al. 2017, PNAS 114:E5693",
+    "(github.com/hsaal/touchsim commit 4ec9f5c): per class the most sensitive of its fits",
+    "(4 SA1, 9 RA, 4 PC), noise off, under its default 0.5 mm pin on its half-space, about rest.",
+    "I0: a spike in the counted cycles; I1: one in every counted cycle (1:1); probe amplitude",
+    "in um, inf where 1:1 is impossible. Made by scripts/calibrate_afferents.py",
+    "--touchsim-curves (TouchSim's input factors c_s, c_u exported from TouchSim itself,",
+    "tests/data/touchsim_reference.json; the fits through vibrotactile.saal_thresholds_stimulus).",
+)
+
+
 def _touchsim_input(cls):
     """TouchSim's own input: α = 1 on its stress (H = c_s handled by the caller)."""
     return dataclasses.replace(cls.saal, input_scale=1.0)
 
 
 def main():
+    if sys.argv[1] == "--touchsim-curves":
+        touchsim_curves()
+        return
     if sys.argv[1] == "--rates":  # TouchSim's regression sinusoids on a run at 10, 25, 250 Hz
         rows = test_sine_rates(Path(sys.argv[2]))
         print("| stimulus | class | TouchSim fit 0 (spikes/s) | this package fit 0 | ratio |")

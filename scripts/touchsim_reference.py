@@ -10,12 +10,13 @@ dependency of this package):
     /tmp/ts-venv/bin/python scripts/touchsim_reference.py       # from this repository's root
 
 Writes tests/data/touchsim_reference.json: per stimulus (TouchSim's own generators: the ramps
-and sinusoids of its tests/test_response.py and a grid of sinusoids under a 0.5 mm pin) and per
-afferent (all 17 fits, noise off, no delay, placed under the pin's centre), the spike count and
-the spike samples (spike time × 5 kHz − 1). TouchSim's input at an afferent under a single pin
-is linear in the pin's trace: static = c_s · trace, dynamic = c_u · d(trace)/dt (central
-differences, end values copied). The script exports c_s and c_u per (class, pin radius) from
-TouchSim's own `Stimulus.propagate` and checks that reconstruction (its error is stored).
+and sinusoids of its tests/test_response.py, a grid of sinusoids and two ramps under a 0.5 mm
+pin) and per afferent (all 17 fits, noise off, no delay, placed under the pin's centre), the
+spike count and the spike samples (spike time × 5 kHz − 1). TouchSim's input at an afferent
+under a single pin is linear in the pin's trace: static = c_s · trace, dynamic = c_u ·
+d(trace)/dt (central differences, end values copied). The script exports c_s and c_u per
+(class, pin radius) from TouchSim's own `Stimulus.propagate` and checks that reconstruction
+(its error is stored).
 """
 
 import json
@@ -27,6 +28,8 @@ import touchsim as ts
 
 OUT = Path(__file__).resolve().parents[1] / "tests" / "data" / "touchsim_reference.json"
 NFITS = {"SA1": 4, "RA": 9, "PC": 4}
+#: Depths (mm) of the ramps under the default 0.5 mm pin (benchmarks/touchsim_ramps.py).
+RAMP_DEPTHS = (1.0, 0.25)
 
 
 def stimuli():
@@ -37,6 +40,8 @@ def stimuli():
     for f in (5.0, 20.0, 50.0, 100.0, 200.0, 400.0):
         for a in (0.01, 0.1):
             yield f"sine {f:g} Hz {a:g} mm", "sine", {"freq": f, "amp": a}
+    for a in RAMP_DEPTHS:  # ramps under the default pin, for the finite-element comparison
+        yield f"ramp {a:g} mm, 0.5 mm pin", "ramp", {"amp": a, "pin_radius": 0.5}
 
 
 def make(kind, args):

@@ -5,6 +5,7 @@ coarse one-point run that samples the sites at every step."""
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,6 +19,7 @@ from fingertip_dolfinx.afferents.receptors import (
     lif_spikes,
     load_receptors,
     receptors_from_dict,
+    saal_spikes,
     saturate,
     threshold_amplitude,
 )
@@ -370,10 +372,13 @@ def test_the_fitted_afferents_respond_to_the_ramp(one_point):
 
 
 @pytest.mark.xfail(strict=True, reason=(
-    "the calibration on the damped scene lowered SA1's input scale (21.52 -> 12.44: the damped "
-    "tissue's |H| grows with frequency, so one alpha over 2-500 Hz leaves the package 2x less "
-    "sensitive than TouchSim at 2 Hz); the 1pt scene's 1 mm ramp under the bar no longer "
-    "reaches the SA1 fits' threshold (measured: 0 spikes)"))
+    "the site under the bar runs SA1 fit 1 (fits[index 5 mod 4]), the least sensitive of "
+    "TouchSim's four, and the finite-element input there is 0.32 of TouchSim's under its "
+    "0.5 mm pin at 1 mm: the calibration's alpha leaves the package ~2x less sensitive at "
+    "2 Hz (one alpha over 2-500 Hz against a |H| that grows with frequency), and the ramp "
+    "from rest reads the secant stress per mm, 0.64 of the tangent about the 1 mm press the "
+    "calibration used; TouchSim's own fit 1 at 0.3x its input is silent on this ramp too. "
+    "Not fixed: one alpha cannot match both; see docs/benchmarks/afferents.md"))
 def test_the_sa1_under_the_bar_fires_on_the_ramp(one_point):
     """The SA1 under the bar fires as the press deepens (a static weight; measured with the
     wu2004 calibration, α = 21.52: 4 spikes, 13.6 spikes/s over the last step, 0.71-1 s), as
@@ -381,6 +386,24 @@ def test_the_sa1_under_the_bar_fires_on_the_ramp(one_point):
     r = afferent_responses(one_point, "calibrated")
     centre = r.of("SA1") & (r.x == 0.0)
     assert r.mean_rate[centre][0] > 1 and r.rate[-1, centre][0] > 5
+
+
+def test_the_silent_sa1_under_the_bar_is_the_least_sensitive_fit(one_point):
+    """Why the test above fails: the site under the bar runs fit 1 (fits[index mod 4]), and on
+    the same stimulus the other three SA1 fits fire (measured: 5, 0, 8, 3 spikes for fits 0-3),
+    as on TouchSim's side, where fit 1 is the least sensitive on every stored ramp. The
+    stimulus reaches ~1/3 of TouchSim's input at 1 mm (α s = 0.0136 MPa; TouchSim 0.0426)."""
+    r = afferent_responses(one_point, "calibrated")
+    j = np.flatnonzero(r.of("SA1") & (r.x == 0.0))[0]
+    assert r.index[j] % 4 == 1 and len(r.spikes[j]) == 0
+    sa1 = load_receptors("calibrated")["SA1"]
+    trains = saal_spikes(sa1, [4, 5, 6, 7], r.time, np.tile(r.stimulus[:, j], (4, 1)))
+    counts = [len(t) for t in trains]
+    assert counts[1] == 0 and min(counts[0], counts[2], counts[3]) > 0, counts
+    ref = json.loads((Path(__file__).parent / "data" / "touchsim_reference.json").read_text())
+    for rec in (x for x in ref["stimuli"] if x["kind"] == "ramp"):
+        sa1_counts = [x["count"] for x in rec["responses"] if x["class"] == "SA1"]
+        assert sa1_counts[1] == min(sa1_counts), (rec["label"], sa1_counts)
 
 
 # --- spike trains, the afferent list and the rate histories of a run --------------------------

@@ -124,13 +124,32 @@ def _touchsim_trace(rec):
     return x
 
 
+def test_the_linear_start_gives_the_stepped_neurons_spikes(fits):
+    """integrate_and_fire runs each neuron as a linear filter until its first crossing and steps
+    only the firing ones, in groups from their first crossing: exactly the flags of stepping
+    every neuron from rest (`_lif_steps` from v = 0). Lanes that never fire, fire at once,
+    fire late (a ramp) and fire with the post-spike current of every fit; identical flags."""
+    rng = np.random.default_rng(7)
+    steps, n = 2000, 3 * len(fits)
+    aff = fits.take(np.arange(n) % len(fits))
+    t = np.arange(steps) / 5000.0
+    ramp = np.clip(t / rng.uniform(0.02, 0.5, n)[:, None], 0, 1)  # crossings spread in time
+    drive = rng.uniform(0.0, 0.2, n)[:, None] * ramp * (1 + 0.5 * np.sin(2 * np.pi * 37 * t))
+    drive[::5] *= 1e-3  # some never fire
+    got = tr.integrate_and_fire(drive, aff.tau, aff.post_spike, 6)
+    want = tr._lif_steps(drive, aff.tau, aff.post_spike, 6, np.zeros(n))
+    assert 0 < got.any(axis=1).sum() < n
+    np.testing.assert_array_equal(got, want)
+    assert tr.integrate_and_fire(drive[:, :0], aff.tau, aff.post_spike, 6).shape == (n, 0)
+
+
 def test_reproduces_touchsim_spike_for_spike(fits):
     """Fed TouchSim's own input at the afferent (static c_s·trace, dynamic c_u·d(trace)/dt,
     reconstructed to 1e-13 of TouchSim's `propagate`, error stored with the data), all 17 fits
-    give TouchSim's spike samples exactly (noise off) on its 16 reference stimuli: the model is
+    give TouchSim's spike samples exactly (noise off) on its 18 reference stimuli: the model is
     the same discrete-time system, so the tolerance is zero spikes and zero samples."""
     ref = json.loads(REFERENCE.read_text())
-    assert len(ref["stimuli"]) == 16
+    assert len(ref["stimuli"]) == 18
     total = 0
     for rec in ref["stimuli"]:
         assert max(v["relative_error"] for v in rec["input"].values()) < 1e-13

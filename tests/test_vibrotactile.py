@@ -314,3 +314,76 @@ def test_saal_rate_is_zero_below_i0_and_one_per_cycle_at_i1():
     i0, i1 = vt.saal_thresholds_stimulus(cls, [f], [0.0])
     rates = vt.rate_vs_amplitude(cls, [f], [[1.0]], [0.0], [0.97 * i0[0], 1.03 * i1[0]])[0, 0]
     assert rates[0] == 0 and rates[1] >= f
+
+
+def test_sine_lanes_count_as_the_direct_simulation():
+    """SineLanes (the amplitude-independent filtering done once) against saal_cycle_counts
+    (the stimulus simulated whole at each amplitude), random lanes of every class with
+    pressed values: the same totals and fewest-per-cycle counts (the linear stages commute
+    with the amplitude up to round-off, which moves no spike here)."""
+    rng = np.random.default_rng(1)
+    population = load_receptors("calibrated")
+    for c in population.classes:
+        aff, n = c.saal.afferents(c.name), 40
+        fits = aff.take(rng.integers(0, len(aff), n))
+        f = np.exp(rng.uniform(np.log(2.0), np.log(1000.0), n))
+        s0 = rng.uniform(0.0, 2e-3, n)
+        a = np.exp(rng.uniform(np.log(1e-4), np.log(1e-1), n)) / c.saal.input_scale
+        args = (c.saal.input_scale, c.saal.kappa(c.name))
+        direct = vt.saal_cycle_counts(fits, f, a, s0, *args)
+        lanes = vt.SineLanes(fits, f, s0, *args).counts(a)
+        assert direct[0].sum() > 0
+        np.testing.assert_array_equal(direct[0], lanes[0])
+        np.testing.assert_array_equal(direct[1], lanes[1])
+
+
+#: (I0, I1) in the site quantity (MPa) of the calibrated set's classes, from the threshold
+#: search before its speed-up (every lane simulated whole at each amplitude, every neuron
+#: stepped sample by sample), at these (f, s0) lanes.
+BEFORE_SPEED_UP = {
+    "SA1": ([3.0, 30.0, 300.0, 30.0], [0.0, 0.0, 0.0, 4e-4],
+            [2.3077429459856665e-04, 9.282813381748057e-05, 4.545912015909913e-04,
+             2.1620569015876555e-05],
+            [2.3077429459856665e-04, 3.2226041600964274e-04, 2.0210182936919733e-02,
+             2.4521928378352296e-04]),
+    "RA": ([10.0, 40.0, 200.0], [0.0, 0.0, 0.0],
+           [2.195994445629841e-04, 6.721575497795861e-05, 3.310197402561148e-05],
+           [2.195994445629841e-04, 1.1148017545411285e-04, 5.459326265558997e-04]),
+    "PC": ([50.0, 250.0, 800.0], [0.0, 0.0, 0.0],
+           [2.1566292140684035e-06, 6.982796574472815e-08, 1.7011716640992703e-07],
+           [7.796163754716563e-06, 1.988928788473939e-06, 1.1555251176862285e-03]),
+}
+
+
+@pytest.mark.parametrize("name", ["SA1", "RA", "PC"])
+def test_the_fast_threshold_search_keeps_the_thresholds(name):
+    """The search's thresholds equal those before its speed-up within the search tolerance
+    (one geometric bisection step, ratio 1e9^(2^-11) = 1.0102; measured: identical)."""
+    f, s0, i0, i1 = BEFORE_SPEED_UP[name]
+    a0, a1 = vt.saal_thresholds_stimulus(load_receptors("calibrated")[name], f, s0)
+    step = (vt.SAAL_RANGE[1] / vt.SAAL_RANGE[0]) ** (2.0 ** -vt.SAAL_BISECTIONS)
+    np.testing.assert_allclose(a0, i0, rtol=step - 1)
+    np.testing.assert_allclose(a1, i1, rtol=step - 1)
+
+
+def test_touchsims_own_curves_are_the_search_on_its_mechanics_and_are_drawn(tmp_path):
+    """data/receptors/touchsim_thresholds.csv holds TouchSim's thresholds: its fits through the
+    search with its own input per mm of pin motion (c_s from TouchSim's `propagate`, α = 1);
+    recomputed at three frequencies per class, equal to the file's 6 digits. The threshold
+    figure draws them, one legend entry per class."""
+    import json
+    from pathlib import Path
+
+    ref = json.loads((Path(__file__).parent / "data" / "touchsim_reference.json").read_text())
+    c_s = next(r for r in ref["stimuli"] if r["pin_radius"] == 0.5)["input"]
+    curves = vt.touchsim_thresholds()
+    assert set(curves) == {"SA1", "RA", "PC"}
+    for name, (f, i0, i1) in curves.items():
+        pick = [4, 20, 33]  # 2.0, 35 and 346 Hz
+        a0, a1 = vt.saal_thresholds_stimulus(_touchsim_class(name), f[pick], 0.0)
+        np.testing.assert_allclose(a0 / c_s[name]["c_s"], i0[pick], rtol=1e-5)
+        np.testing.assert_allclose(a1 / c_s[name]["c_s"], i1[pick], rtol=1e-5)
+    th = vt.vibration_thresholds(_touchsim_class("PC"), f[::8], np.ones((5, 1)), np.zeros(1))
+    legend = vt.plot_threshold_curves([th], tmp_path / "thresholds.png")
+    assert "PC TouchSim (Saal et al. 2017)" in legend
+    assert not any(entry.startswith("RA TouchSim") for entry in legend)  # only classes drawn

@@ -42,6 +42,10 @@ CLASSES = ("SA1", "RA", "PC")
 MODEL = "saal2017"
 #: Column order of a fit's parameters (TouchSim's 13 numbers, in its order).
 WEIGHTS = ("s_pos", "s_neg", "ds_pos", "ds_neg", "dds_pos", "dds_neg")
+#: Neurons that fire are stepped in up to this many groups of similar first-crossing time, each
+#: from its own first crossing (`integrate_and_fire`).
+LIF_GROUPS = 4
+LIF_STEP_COST = 500  # lanes: a step's fixed cost (~12 numpy calls of ~1 µs)
 
 
 @dataclass(frozen=True)
@@ -136,6 +140,8 @@ def rectified(weights: np.ndarray, s: np.ndarray, u: np.ndarray) -> np.ndarray:
 def saturated(current: np.ndarray, saturation: np.ndarray) -> np.ndarray:
     """J = p7 I / (p7 + |I|) on the rows with p7 > 0; I elsewhere."""
     p7 = saturation[:, None]
+    if np.all(saturation > 0):  # every row saturates (a group of such fits): no 0/0 to guard
+        return p7 * current / (p7 + np.abs(current))
     with np.errstate(invalid="ignore", divide="ignore"):
         out = np.where(p7 > 0, p7 * current / (p7 + np.abs(current)), current)
     return np.nan_to_num(out, nan=0.0)
@@ -144,29 +150,74 @@ def saturated(current: np.ndarray, saturation: np.ndarray) -> np.ndarray:
 def integrate_and_fire(j: np.ndarray, tau: np.ndarray, post_spike: np.ndarray,
                        refractory: int) -> np.ndarray:
     """Spike flags (n, T) of the discrete leaky integrate-and-fire neurons driven by j (n, T).
-    The loop runs over samples, each step vectorised over the afferents (in-place updates:
-    the cost is per step, nearly independent of n up to ~1e3)."""
+
+    Until its first spike a neuron is the linear filter v_k = (1 - 1/τ) v_{k-1} + J_k (no
+    post-spike current yet, no refractory period), which scipy runs in C: a neuron whose
+    filtered current never exceeds 1 never fires, and the others are stepped sample by sample
+    (`_lif_steps`) only from the first crossing of their group on, from the filter's state
+    there (the same operations in the same order: the same flags)."""
+    n, steps = j.shape
+    j = np.asarray(j, dtype=float)
+    spikes = np.zeros((n, steps), dtype=bool)
+    if not n * steps:
+        return spikes
+    v_lin = np.empty_like(j)
+    for t in np.unique(tau):  # one filter per membrane time constant
+        rows = tau == t
+        v_lin[rows] = signal.lfilter([1.0], [1.0, -(1.0 - 1.0 / t)], j[rows], axis=1)
+    above = v_lin > 1.0
+    first = np.where(above.any(axis=1), above.argmax(axis=1), steps)
+    firing = np.flatnonzero(first < steps)
+    order = firing[np.argsort(first[firing], kind="stable")]
+    for group in _groups(order, first[order], steps):
+        k0 = int(first[group[0]])
+        v0 = v_lin[group, k0 - 1] if k0 > 0 else np.zeros(len(group))
+        spikes[group, k0:] = _lif_steps(j[group, k0:], tau[group], post_spike[group],
+                                        refractory, v0)
+    return spikes
+
+
+def _groups(order, start, steps: int) -> list[np.ndarray]:
+    """`order` (rows sorted by their first crossing `start`) split into 1 to LIF_GROUPS groups
+    of equal count, the number that costs least to step: a step costs LIF_STEP_COST lanes'
+    worth of fixed overhead plus one per lane, from the group's first crossing on."""
+    best, cost = [], np.inf
+    for g in range(1, min(len(order), LIF_GROUPS) + 1):
+        parts = np.array_split(np.arange(len(order)), g)
+        c = sum((steps - start[p[0]]) * (LIF_STEP_COST + len(p)) for p in parts)
+        if c < cost:
+            best, cost = [order[p] for p in parts], c
+    return best
+
+
+def _lif_steps(j: np.ndarray, tau: np.ndarray, post_spike: np.ndarray, refractory: int,
+               v0: np.ndarray) -> np.ndarray:
+    """Spike flags (n, T) of the neurons from membrane v0 and no spike yet, stepped sample by
+    sample, each step vectorised over the afferents (in-place updates: the cost is per step,
+    nearly independent of n up to ~1e3)."""
     n, steps = j.shape
     m = post_spike.shape[1]
     h = np.concatenate([post_spike, np.zeros((n, 1))], axis=1).ravel()  # column m: none
     base = np.arange(n) * (m + 1)
+    cap, ready = base + m, base + refractory
     leak = 1.0 - 1.0 / tau
-    drive = np.ascontiguousarray(np.asarray(j, dtype=float).T)
-    v = np.zeros(n)
-    since = np.full(n, m)  # samples since the last spike, capped at m (none yet: m)
+    drive = np.ascontiguousarray(j.T)
+    v = np.array(v0, dtype=float)
+    at = cap.copy()  # base + samples since the last spike, capped at m (none yet: m)
     spikes = np.zeros((steps, n), dtype=bool)
-    fire = np.empty(n, dtype=bool)
+    fire, free = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
     for k in range(steps):
         v *= leak
         v += drive[k]
-        v += h.take(base + since)
-        since += 1
-        np.minimum(since, m, out=since)
+        v += h.take(at)
+        at += 1
+        np.minimum(at, cap, out=at)
         np.greater(v, 1.0, out=fire)
-        fire &= since >= refractory
+        np.greater_equal(at, ready, out=free)
+        fire &= free
         spikes[k] = fire
         np.putmask(v, fire, 0.0)
-        np.putmask(since, fire, 0)
+        np.putmask(at, fire, base)
     return spikes.T
 
 

@@ -66,9 +66,11 @@ PC's as 1/f² without end; any U shape must come from the mechanics' H.
 discrete-time models at 5 kHz with their own low-pass and post-spike current, so no closed
 form per piece; `saal_thresholds_stimulus` simulates every (lane, fit) on s0 + a sin θ (after
 SAAL_SETTLE, counting at least SAAL_COUNT seconds) and bisects the amplitude geometrically per
-lane (SAAL_BISECTIONS rounds, 1 %). Per site the most sensitive fit counts. Fed TouchSim's own
-quasi-static mechanics they have the classic tuning (PC I1 lowest near 200 Hz, RA near 30 Hz,
-SA1 below 10 Hz; tests/test_vibrotactile.py).
+lane (SAAL_BISECTIONS rounds, 1 %); the stages before the rectification are linear in the
+amplitude and run once per lane (`SineLanes`), and the neuron is a linear filter until its first
+spike (`transduction.integrate_and_fire`). Per site the most sensitive fit counts. Fed
+TouchSim's own quasi-static mechanics they have the classic tuning (PC I1 lowest near 200 Hz,
+RA near 30 Hz, SA1 below 10 Hz; tests/test_vibrotactile.py).
 """
 
 from __future__ import annotations
@@ -78,9 +80,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..datafiles import builtin_dir
 from ..errors import InputError
 from .receptors import LIF, ReceptorClass, rectified_input, saturate
-from .transduction import Afferents, site_inputs, spike_flags
+from .transduction import (
+    Afferents,
+    integrate_and_fire,
+    lowpass,
+    rectified,
+    saturated,
+    site_inputs,
+    spike_flags,
+)
 
 SAMPLES = 64  # samples of J per cycle (divisible by 4): J interpolation error <= 1.2e-3 relative
 SETTLE = 3  # cycles discarded at least (more for slow membranes, see _settle)
@@ -456,18 +467,69 @@ def saal_cycle_counts(aff: Afferents, frequency, a, s0, scale: float, kappa: flo
     (`site_inputs`: central differences, as its fits were made); cycles counted after
     SAAL_SETTLE, max(SAAL_CYCLES, SAAL_COUNT f) of them."""
     f = np.asarray(frequency, dtype=float)
-    counted = _saal_counted(f)
-    steps = int(math.ceil((SAAL_SETTLE + np.max(counted / f)) * aff.fs)) + 1
-    t = np.arange(steps) / aff.fs
+    t, cycle, inside = _saal_clock(f, aff.fs)
     s = s0[:, None] + a[:, None] * np.sin(2 * np.pi * f[:, None] * t[None, :])
     flags = spike_flags(aff, *site_inputs(s, aff.fs, scale, kappa))
+    return _saal_tally(flags, cycle, inside, _saal_counted(f))
+
+
+def _saal_clock(f, fs: float):
+    """The samples' times (T,) of lanes of frequencies f (long enough for the slowest lane),
+    each sample's counted cycle (n, T) and whether it is counted (n, T)."""
+    counted = _saal_counted(f)
+    steps = int(math.ceil((SAAL_SETTLE + np.max(counted / f)) * fs)) + 1
+    t = np.arange(steps) / fs
     cycle = np.floor((t[None, :] - SAAL_SETTLE) * f[:, None]).astype(int)
-    inside = (cycle >= 0) & (cycle < counted[:, None])
-    counts = np.zeros((len(f), counted.max()))
+    return t, cycle, (cycle >= 0) & (cycle < counted[:, None])
+
+
+def _saal_tally(flags, cycle, inside, counted):
+    """(total, fewest per counted cycle) of spike flags (n, T)."""
+    counts = np.zeros((len(flags), counted.max()))
     lane, k = np.nonzero(flags & inside)
     np.add.at(counts, (lane, cycle[lane, k]), 1)
     unused = np.arange(counted.max())[None, :] >= counted[:, None]
     return counts.sum(axis=1), np.where(unused, np.inf, counts).min(axis=1)
+
+
+class SineLanes:
+    """`saal_cycle_counts` of fixed lanes (fit, f, s0) at any amplitudes, with the work that
+    does not depend on the amplitude done once. Everything before the rectification is linear
+    in the stimulus (central differences, the low-pass), so the filtered inputs are
+    S0 + a·S1 (static; S0 of s0 alone, S1 of the unit sine) and a·U (dynamic); a > 0 passes
+    through the rectification of the dynamic terms, whose current is a·D. Each amplitude then
+    costs the static terms (classes with a static weight), the saturation, the neuron and the
+    tally: the same numbers as `saal_cycle_counts` up to round-off."""
+
+    def __init__(self, aff: Afferents, frequency, s0, scale: float, kappa: float):
+        f, s0 = np.asarray(frequency, dtype=float), np.asarray(s0, dtype=float)
+        self.aff, self.counted = aff, _saal_counted(f)
+        self.t, self.cycle, self.inside = _saal_clock(f, aff.fs)
+        unit = np.sin(2 * np.pi * f[:, None] * self.t[None, :])
+        s1, u1 = site_inputs(unit, aff.fs, scale, kappa)
+        dynamic_weights = aff.weights * np.array([0, 0, 1, 1, 1, 1])
+        self.dynamic = rectified(dynamic_weights, np.zeros_like(u1),
+                                 lowpass(u1, aff.cutoff_Hz, aff.fs))
+        self.static_weights = aff.weights[:, :2]
+        self.static = None
+        if np.any(self.static_weights):  # SA1: TouchSim filters its static input only
+            s00 = site_inputs(np.broadcast_to(s0[:, None], unit.shape), aff.fs, scale, kappa)[0]
+            sa1 = aff.cls == "SA1"
+            s00[sa1] = lowpass(s00[sa1], aff.cutoff_Hz[sa1], aff.fs)
+            s1[sa1] = lowpass(s1[sa1], aff.cutoff_Hz[sa1], aff.fs)
+            self.static = (s00, s1)
+
+    def counts(self, a):
+        """(total, fewest per counted cycle) per lane at amplitudes a (n,) > 0."""
+        a = np.asarray(a, dtype=float)[:, None]
+        current = self.dynamic * a
+        if self.static is not None:
+            s = self.static[0] + a * self.static[1]
+            p = self.static_weights
+            current += p[:, :1] * np.maximum(s, 0.0) + p[:, 1:] * np.maximum(-s, 0.0)
+        j = saturated(current, self.aff.saturation)
+        flags = integrate_and_fire(j, self.aff.tau, self.aff.post_spike, self.aff.refractory)
+        return _saal_tally(flags, self.cycle, self.inside, self.counted)
 
 
 def _saal_search(aff, f, s0, scale, kappa):
@@ -480,9 +542,10 @@ def _saal_search(aff, f, s0, scale, kappa):
     entrain = np.arange(2 * len(f)) >= len(f)
     lo = np.full(2 * len(f), SAAL_RANGE[0] / scale)
     hi = np.full(2 * len(f), SAAL_RANGE[1] / scale)
+    lanes = SineLanes(both, f2, s02, scale, kappa)
 
     def meets(a):
-        total, fewest = saal_cycle_counts(both, f2, a, s02, scale, kappa)
+        total, fewest = lanes.counts(a)
         return np.where(entrain, fewest >= 1, total > 0)
 
     top, bottom = meets(hi), meets(lo)
@@ -629,8 +692,41 @@ def _published_handle(p: Published, colour):
         f"{_short_source(p.source)})"))
 
 
+def touchsim_thresholds() -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """TouchSim's own thresholds per class: (frequency Hz, I0 mm, I1 mm), the most sensitive of
+    its fits under its 0.5 mm pin about rest (data/receptors/touchsim_thresholds.csv, made by
+    scripts/calibrate_afferents.py --touchsim-curves; its source in the file's header)."""
+    path = builtin_dir("receptors") / "touchsim_thresholds.csv"
+    rows = [line.split(",") for line in path.read_text().splitlines()
+            if line and not line.startswith("#")][1:]
+    out = {}
+    for name in dict.fromkeys(r[0] for r in rows):
+        values = np.array([[float(x) for x in r[1:]] for r in rows if r[0] == name])
+        out[name] = (values[:, 0], values[:, 1] * 1e-3, values[:, 2] * 1e-3)
+    return out
+
+
+def _touchsim_lines(ax, curves, colours) -> list:
+    """TouchSim's own I0 (thin solid) and I1 (dashed) per class of `curves`, over their
+    frequency range; one legend handle per class."""
+    from matplotlib.lines import Line2D
+
+    reference, handles = touchsim_thresholds(), []
+    for th in curves:
+        if th.name not in reference:
+            continue
+        f, i0, i1 = reference[th.name]
+        keep = (f >= th.frequency.min() / 1.2) & (f <= th.frequency.max() * 1.2)
+        c = colours.get(th.name, "k")
+        ax.loglog(f[keep], i0[keep] * 1e3, "-", color=c, lw=0.8, alpha=0.6)
+        ax.loglog(f[keep], i1[keep] * 1e3, "--", color=c, lw=0.8, alpha=0.6)
+        handles.append(Line2D([], [], color=c, lw=0.8, ls="--", label=(
+            f"{th.name} TouchSim (Saal et al. 2017)")))
+    return handles
+
+
 def plot_threshold_curves(curves, path, *, published=PUBLISHED, title: str = "",
-                          note: str = "") -> list[str]:
+                          note: str = "", touchsim: bool = True) -> list[str]:
     """Threshold vs frequency, log-log, amplitudes in µm: per class (colour) the most
     sensitive site's absolute threshold I0 (filled circles) and 1:1 entrainment threshold I1
     (open triangles), at the computed frequencies only (markers: a line would pass across
@@ -639,6 +735,7 @@ def plot_threshold_curves(curves, path, *, published=PUBLISHED, title: str = "",
     over their band, each named in the legend below the axes. A missing marker: no threshold
     there (the pressed state alone fires the site, or it cannot follow 1:1). `note`: a
     warning written in red above the axes (the frequency route's resolution warning).
+    `touchsim`: TouchSim's own thresholds of the classes drawn as lines (`touchsim_thresholds`).
     `curves`: VibrationThresholds, one per class. Returns the legend's entries."""
     from matplotlib.figure import Figure
 
@@ -646,7 +743,7 @@ def plot_threshold_curves(curves, path, *, published=PUBLISHED, title: str = "",
 
     colours = {"SA1": "tab:blue", "RA": "tab:green", "PC": "tab:red",
                "psychophysics": "0.5"}
-    fig = Figure(figsize=(7.2, 7.0))
+    fig = Figure(figsize=(7.2, 7.6 if touchsim else 7.0))
     ax = fig.subplots()
     handles = []
     for th in curves:
@@ -657,6 +754,8 @@ def plot_threshold_curves(curves, path, *, published=PUBLISHED, title: str = "",
             keep = np.isfinite(y) & (y > 0)
             handles += ax.loglog(th.frequency[keep], y[keep], marker, color=c, mfc=fill, ms=5,
                                  ls="none", label=f"{th.name} {name}")
+    if touchsim:
+        handles += _touchsim_lines(ax, curves, colours)
     for p in published:
         c = colours.get(p.cls, "k")
         if p.band is None:
@@ -676,10 +775,12 @@ def plot_threshold_curves(curves, path, *, published=PUBLISHED, title: str = "",
     fig.legend(handles=handles, loc="lower center", bbox_to_anchor=(0.5, 0.025), fontsize=7,
                ncol=2, frameon=False)
     fig.text(0.5, 0.005, "markers: computed frequencies; no marker: no threshold there (the "
-             "pressed state alone fires, or the site cannot follow 1:1)", ha="center",
-             fontsize=7, color="0.3")
+             "pressed state alone fires, or the site cannot follow 1:1)" + (
+                 "\nlines: TouchSim's own fits on its half-space under its 0.5 mm pin, about "
+                 "rest: I1 dashed, I0 solid" if touchsim else ""),
+             ha="center", fontsize=7, color="0.3")
     if note:
         fig.text(0.5, 0.975, note, ha="center", va="top", fontsize=7, color="tab:red")
-    fig.tight_layout(rect=(0, 0.19, 1, 0.96 if note else 1))
+    fig.tight_layout(rect=(0, 0.23 if touchsim else 0.19, 1, 0.96 if note else 1))
     fig.savefig(path, dpi=150)
     return [h.get_label() for h in handles]
