@@ -82,6 +82,10 @@ class Indenter:
         """Radius of curvature at the tip (mm): what the surface mesh must resolve."""
         return math.inf  # flat
 
+    def tip_xs(self) -> tuple[float, ...]:
+        """x of the tops (mm) whose height is y_tip: where a tip could pierce the body."""
+        return (self.centre_x,)
+
     def _field(self, coords: list, y_tip, ops: _Ops) -> tuple:
         """(φ, [n components]) at the point with coordinates `coords` (2 or 3 of them)."""
         raise NotImplementedError
@@ -343,6 +347,10 @@ class Grating(_Prism):
     def centres(self) -> np.ndarray:
         """The ridges' centre lines relative to centre_x (mm), ascending."""
         return (np.arange(self.ridges) - (self.ridges - 1) / 2) * self.period
+
+    def tip_xs(self) -> tuple[float, ...]:
+        """The middles of the ridges' tops (centre_x is a groove's middle for an even count)."""
+        return tuple(float(c) for c in self.centre_x + self.centres())
 
     def _distance(self, px, py, y_tip, ops):
         r, a = self.corner_radius, self.width / 2 - self.corner_radius
