@@ -108,17 +108,14 @@ def test_coarser_gratings_and_wider_gaps_are_told_apart_better(tmp_path):
     """The coarse study at two grating widths and one gap: the SA1 counts of the two phases
     differ more (root-mean-square over the row) and d′ is larger at the coarser grating, for
     every offset of the row; the bar's 2 mm gap changes the counts."""
-    from fingertip_dolfinx.studies.acuity import COARSE, run_acuity
+    from fingertip_dolfinx.studies.acuity import COARSE, read_counts, run_acuity
 
     result = run_acuity(tmp_path, widths=(0.5, 2.0), gaps=(2.0,), overrides=COARSE,
                         progress=False)
-    from fingertip_dolfinx.outputs import read_csv
-
-    counts = read_csv(tmp_path / "counts.csv")  # the run column is text: read it apart
-    runs = np.loadtxt(tmp_path / "counts.csv", delimiter=",", skiprows=1, usecols=0, dtype=str)
+    counts = read_counts(tmp_path / "counts.csv")
 
     def mu(label):
-        return counts["expected_count"][runs == label]
+        return counts[label][1]
 
     rms = [np.sqrt(np.mean((mu(f"grating-w{w:g}-A") - mu(f"grating-w{w:g}-B")) ** 2))
            for w in (0.5, 2.0)]

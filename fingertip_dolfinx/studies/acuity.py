@@ -166,7 +166,7 @@ def study_jobs(out: Path, widths, gaps, overrides=()) -> list[tuple]:
     receptors = sampling_set(out / "sa1-row.toml")
     common = [*overrides, f"output.receptors={toml_value(str(receptors))}"]
     tables = [(f"grating-w{w:g}-{p}", grating_table(w, p)) for w in widths for p in "AB"]
-    tables += [(f"gap-g{g:g}", gap_table(g)) for g in (0.0, *gaps)]
+    tables += [(f"gap-g{g:g}", gap_table(g)) for g in ((0.0, *gaps) if gaps else ())]
     return [(label, load_scene("grating", [*common, f"indenters=[{toml_value(t)}]"]),
              out / label) for label, t in tables]
 
@@ -209,20 +209,30 @@ def summarise(counts: dict, widths, gaps) -> dict:
             "gap": task([("gap-g0", f"gap-g{g:g}") for g in gaps], gaps, "gap")}
 
 
+def read_counts(path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """counts.csv read back: {run: (x_mm, expected_count)}."""
+    import csv
+
+    runs: dict[str, list] = {}
+    with Path(path).open() as f:
+        for row in csv.DictReader(f):
+            runs.setdefault(row["run"], []).append((float(row["x_mm"]),
+                                                    float(row["expected_count"])))
+    return {label: tuple(np.array(column) for column in zip(*rows))
+            for label, rows in runs.items()}
+
+
 def acuity_table(result: dict) -> str:
     """The predicted thresholds next to the measured ones, and the package's 2PT answers, as
     a Markdown table."""
-    def mm(value):
-        return "not reached" if value is None else f"{value:.2f}"
-
     lines = ["| task | this package (mm) | measured (mm) | source / criterion |",
              "| --- | --- | --- | --- |"]
     for name, what in (("grating", "grating (ridge = groove width), A vs B"),
                        ("gap", f"gap in a {result['gap_bar_mm']:g} mm bar vs none")):
         t = result[name]
-        lines.append(f"| {what} | {mm(t['threshold_mm'])} (d′ = 1; smallest width passing: "
-                     f"{mm(t['smallest_resolved_mm'])}) | {t['measured_mm']:g} | "
-                     f"{t['measured_source']} |")
+        if t["widths_mm"]:
+            lines.append(f"| {what} | {_threshold_text(t)} | {t['measured_mm']:g} | "
+                         f"{t['measured_source']} |")
     lines += [f"| {what} | {ours} | {measured} | {source} |"
               for what, ours, measured, source in TWO_POINT]
     return "\n".join(lines) + "\n"
@@ -254,8 +264,10 @@ def plot_acuity(result: dict, counts: dict, path: Path) -> None:
     ax, grating, gap = fig.subplots(1, 3)
     for name, colour in (("grating", "C0"), ("gap", "C1")):
         t = result[name]
+        if not t["widths_mm"]:
+            continue
         ax.plot(t["widths_mm"], t["dprime"], "o-", color=colour,
-                label=f"{name}: predicted {_mm(t['threshold_mm'])}")
+                label=f"{name}: predicted {_threshold_text(t).split(' (')[0]} mm")
         ax.plot(np.repeat(t["widths_mm"], SAMPLING), np.ravel(t["dprime_rows"]), ".",
                 color=colour, alpha=0.35)
         ax.axvline(t["measured_mm"], color=colour, ls=":",
@@ -271,8 +283,13 @@ def plot_acuity(result: dict, counts: dict, path: Path) -> None:
     fig.savefig(path, dpi=150)
 
 
-def _mm(value) -> str:
-    return "not reached" if value is None else f"{value:.2f} mm"
+def _threshold_text(task: dict) -> str:
+    """The threshold, or where it lies when the computed widths do not bracket it."""
+    if task["threshold_mm"] is not None:
+        return f"{task['threshold_mm']:.2f}"
+    if task["smallest_resolved_mm"] is not None:  # every width passes
+        return f"< {min(task['widths_mm']):g} (d′ ≥ 1 at every width)"
+    return f"> {max(task['widths_mm']):g} (d′ < 1 at the largest)"
 
 
 def _profiles(ax, counts: dict, a: str, b: str, labels, title: str) -> None:
