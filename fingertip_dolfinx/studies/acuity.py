@@ -276,10 +276,19 @@ def plot_acuity(result: dict, counts: dict, path: Path) -> None:
     ax.set(xlabel="ridge width or gap (mm)", ylabel="d′ of one SA1 row (dots: its offsets)",
            title="SA1 ideal observer, Poisson counts")
     ax.legend(fontsize=7)
-    _profiles(grating, counts, "grating-w1-A", "grating-w1-B", ("ridge at x = 0",
-              "groove at x = 0"), "grating, 1 mm ridges and grooves")
-    _profiles(gap, counts, "gap-g0", "gap-g1", ("no gap", "1 mm gap"),
-              f"{result['gap_bar_mm']:g} mm bar, with and without a gap")
+    for panel, name in ((grating, "grating"), (gap, "gap")):
+        sizes = result[name]["widths_mm"]
+        if not sizes:
+            panel.set_axis_off()
+            continue
+        w = min(sizes, key=lambda v: abs(v - 1.0))  # the one nearest 1 mm
+        if name == "grating":
+            _profiles(panel, counts, f"grating-w{w:g}-A", f"grating-w{w:g}-B",
+                      ("ridge at x = 0", "groove at x = 0"),
+                      f"grating, {w:g} mm ridges and grooves")
+        else:
+            _profiles(panel, counts, "gap-g0", f"gap-g{w:g}", ("no gap", f"{w:g} mm gap"),
+                      f"{result['gap_bar_mm']:g} mm bar, with and without a gap")
     fig.savefig(path, dpi=150)
 
 
