@@ -158,9 +158,12 @@ def _add_study(subparsers) -> None:
         "fidelity: the scene with a ladder of models from a linear-elastic "
         "continuum to the full biphasic model, each scored against the full one "
         "(DIR/fidelity.csv, .md, .png). stability: known numerical failure modes measured "
-        "beside the methods that work (DIR/stability.csv, .md, figures).",
+        "beside the methods that work (DIR/stability.csv, .md, figures). acuity: gratings "
+        "and gaps pressed into the section, the SA1 population's spike counts and the widths "
+        "an ideal observer tells apart (d' = 1), next to the measured thresholds "
+        "(DIR/acuity.md, acuity.csv, counts.csv, acuity.png; coarse mesh unless --full).",
     )
-    p.add_argument("kind", choices=("accuracy", "fidelity", "stability"))
+    p.add_argument("kind", choices=("accuracy", "fidelity", "stability", "acuity"))
     p.add_argument("--scene", default=None,
                    help="scene of the accuracy and fidelity studies (default: 1pt for accuracy, "
                    "line-load for fidelity)")
@@ -170,6 +173,11 @@ def _add_study(subparsers) -> None:
                    help="accuracy: also run the adaptive mesh loop with this tolerance from "
                    "the study's coarsest mesh and check its estimated errors against the "
                    "study's reference (DIR/adaptive/)")
+    p.add_argument("--widths", type=float, nargs="+", metavar="W", default=None,
+                   help="acuity: ridge (= groove) widths of the gratings in mm (default "
+                   "0.5 0.75 1 1.5 2)")
+    p.add_argument("--gaps", type=float, nargs="+", metavar="G", default=None,
+                   help="acuity: gaps in the 4 mm bar in mm (default 0.5 1 1.5 2)")
     _add_scene_options(p)
     p.set_defaults(handler=_run_study)
 
@@ -178,6 +186,8 @@ COMMANDS = [_add_mesh, _add_run, _add_sweep, _add_study]
 
 
 def _run_study(args) -> int:
+    if args.kind == "acuity":
+        return _run_acuity(args)
     if args.kind == "stability":
         from .studies.stability import run_stability_study
 
@@ -208,6 +218,19 @@ def _run_study(args) -> int:
         _rank0_print(f"{r['model']:>18}: {r['wall_time_s']:6.1f} s, largest error "
                      f"{100 * r['max_error']:6.2f} %")
     _rank0_print(f"fidelity table written to {args.out}/fidelity.md")
+    return 0
+
+
+def _run_acuity(args) -> int:
+    """`fingertip study acuity`: the table printed, the files in --out."""
+    from .studies import acuity
+
+    coarse = [] if args.full else list(acuity.COARSE)
+    result = acuity.run_acuity(args.out, args.widths or acuity.WIDTHS, args.gaps or acuity.GAPS,
+                               coarse + _scene_overrides(args), progress=not args.quiet)
+    _rank0_print(f"Criterion: {result['criterion']}.\n")
+    _rank0_print(acuity.acuity_table(result))
+    _rank0_print(f"acuity table written to {args.out}/acuity.md")
     return 0
 
 

@@ -439,9 +439,9 @@ class FingertipProblem(SteppableState):
             order = np.argsort(x[:, 0])
             xs, ys = x[order, 0], x[order, 1]
             for o in self.obstacles:
-                cx = o.indenter.centre_x
-                if xs[0] <= cx <= xs[-1]:
-                    depth = max(depth, float(o.y_tip.value - np.interp(cx, xs, ys)))
+                for cx in o.indenter.tip_xs():  # a gap's middle is no tip: skin rises there
+                    if xs[0] <= cx <= xs[-1]:
+                        depth = max(depth, float(o.y_tip.value - np.interp(cx, xs, ys)))
         depth = max(self.mesh.comm.bcast(depth, root=0), 0.0)
         nodes = self.contact.max_penetration() if nodes is None else nodes
         self._warn_if_tip_slips(depth, nodes)

@@ -16,6 +16,7 @@ from fingertip_dolfinx.geometry.indenters import (
     BUILTIN_DIR,
     Bar,
     Cylinder,
+    Grating,
     Plate,
     Sphere,
     Wedge,
@@ -25,12 +26,18 @@ from fingertip_dolfinx.geometry.indenters import (
 )
 
 WEDGE = Wedge(tip_radius=0.025, base=1.2, height=3.0, centre_x=0.3)
-SHAPES = [WEDGE, Bar(width=1.0, centre_x=-0.2), Cylinder(radius=2.0, centre_x=0.5), Plate()]
+# Four ridges (centres at 0.2 ± 0.55, ± 1.65): points over |x| <= 1.5 meet ridges, grooves,
+# the outermost ridges' outer flanks and the rounded corners.
+GRATING = Grating(width=0.6, period=1.1, ridges=4, corner_radius=0.1, centre_x=0.2)
+SHAPES = [WEDGE, Bar(width=1.0, centre_x=-0.2), Cylinder(radius=2.0, centre_x=0.5), Plate(),
+          GRATING]
 Y_TIP = -0.4
 
 
 def boundary(shape, y_tip: float, n: int = 200_001) -> np.ndarray:
     """Dense points on the shape's boundary (flanks down to 5 mm), built independently."""
+    if isinstance(shape, Grating):
+        return grating_boundary(shape, y_tip, n)
     if isinstance(shape, Plate):
         return np.column_stack((np.linspace(-10, 10, n), np.full(n, y_tip)))
     if isinstance(shape, Cylinder):
@@ -49,6 +56,22 @@ def boundary(shape, y_tip: float, n: int = 200_001) -> np.ndarray:
     right = tangent_point + s * [math.sin(alpha), -math.cos(alpha)]
     left = right * [-1, 1] + [2 * c[0], 0]
     return np.vstack((arc, right, left))
+
+
+def grating_boundary(g: Grating, y_tip: float, n: int) -> np.ndarray:
+    """Each ridge as its pieces: the flat top, two quarter circles (n/10 points each), two
+    flanks down 5 mm (n points each)."""
+    r, a = g.corner_radius, g.width / 2 - g.corner_radius
+    pieces = []
+    for c in g.centre_x + (np.arange(g.ridges) - (g.ridges - 1) / 2) * g.period:
+        t, s = np.linspace(0, np.pi / 2, n // 10), np.linspace(-a, a, n // 10)
+        down = np.linspace(0, 5, n)
+        for side in (-1, 1):
+            pieces.append(np.column_stack((c + side * (a + r * np.cos(t)),
+                                           y_tip - r + r * np.sin(t))))
+            pieces.append(np.column_stack((np.full(n, c + side * (a + r)), y_tip - r - down)))
+        pieces.append(np.column_stack((c + s, np.full(len(s), y_tip))))
+    return np.vstack(pieces)
 
 
 @pytest.mark.parametrize("shape", SHAPES, ids=lambda s: s.shape)
@@ -109,6 +132,33 @@ def test_bar_cylinder_and_plate_values():
     assert np.allclose(n, [[0, 1], [0, 1]])
 
 
+def test_a_grating_is_the_union_of_its_ridges_and_one_ridge_is_a_flat_topped_bar():
+    """The fold onto the nearest ridge gives min over the ridges' own distances (each a
+    one-ridge grating), and that ridge's normal; a ridge with corner_radius = width/2 is the
+    round-tipped bar."""
+    rng = np.random.default_rng(3)
+    points = np.column_stack((rng.uniform(-3, 3, 2000), rng.uniform(-2.5, 0.6, 2000)))
+    singles = [dataclasses.replace(GRATING, ridges=1, centre_x=GRATING.centre_x + c)
+               for c in GRATING.centres()]
+    each = [g.signed_distance_np(points, Y_TIP) for g in singles]
+    distances = np.array([phi for phi, _ in each])
+    nearest = np.argmin(distances, axis=0)
+    phi, n = GRATING.signed_distance_np(points, Y_TIP)
+    assert np.allclose(phi, distances.min(axis=0), rtol=0, atol=1e-14)  # x − c rounded apart
+    two = np.sort(distances, axis=0)[:2]
+    clear = two[1] - two[0] > 1e-9  # off the groove's medial line, where two ridges tie
+    assert np.allclose(n[clear], np.array([each[k][1][i] for i, k in enumerate(nearest)])[clear],
+                       rtol=0, atol=1e-12)
+    round_ridge = Grating(width=1.0, period=1.0, ridges=1, corner_radius=0.5, centre_x=-0.2)
+    bar = Bar(width=1.0, centre_x=-0.2)
+    assert np.allclose(round_ridge.signed_distance_np(points, Y_TIP)[0],
+                       bar.signed_distance_np(points, Y_TIP)[0], atol=1e-14)
+    # a point 0.3 mm above the middle of the flat top of a ridge, and one in the groove
+    top = GRATING.centre_x + GRATING.centres()[1]
+    phi, n = GRATING.signed_distance_np([[top + 0.15, Y_TIP + 0.3], [top + 0.55, -1.0]], Y_TIP)
+    assert phi == pytest.approx([0.3, 0.25]) and n[0] == pytest.approx([0.0, 1.0])
+
+
 def test_penetration_is_the_depth_inside_and_zero_outside():
     depth = penetration(Bar(width=1.0), np.array([[0.0, -0.1], [0.0, 0.2], [0.4, -2.0]]), 0.0)
     assert depth == pytest.approx([0.1, 0.0, 0.1])
@@ -162,6 +212,12 @@ def test_a_user_file_loads(tmp_path):
         ({"shape": "wedge", "base": 1.2}, "tip_radius, height: missing for a wedge"),
         ({"shape": "pyramid"}, "shape: got 'pyramid'.*one of wedge, bar, plate, cylinder"),
         ({"width": 1.0}, "shape: got None"),
+        ({"shape": "grating", "width": 1.0, "period": 1.0, "ridges": 3, "corner_radius": 0.1},
+         "grating.period: 1.0 mm does not exceed the ridge width"),
+        ({"shape": "grating", "width": 1.0, "period": 2.0, "ridges": 3.0, "corner_radius": 0.1},
+         "grating.ridges: must be a whole number"),
+        ({"shape": "grating", "width": 1.0, "period": 2.0, "ridges": 3, "corner_radius": 0.6},
+         "grating.corner_radius: 0.6 mm is larger than half the ridge width"),
     ],
 )
 def test_each_bad_value_gets_its_own_message(data, message):
@@ -170,7 +226,7 @@ def test_each_bad_value_gets_its_own_message(data, message):
 
 
 def test_a_missing_file_names_the_builtins_and_where_they_are():
-    names = r"no such file.*bar, cylinder, plate, sphere, wedge"
+    names = r"no such file.*bar, cylinder, grating, plate, sphere, wedge"
     with pytest.raises(InputError, match=names) as info:
         load_indenter("pyramid")
     assert str(BUILTIN_DIR) in str(info.value)

@@ -90,6 +90,10 @@ class Indenter:
         """Radius of curvature at the tip (mm): what the surface mesh must resolve."""
         return math.inf  # flat
 
+    def tip_xs(self) -> tuple[float, ...]:
+        """x of the tops (mm) whose height is y_tip: where a tip could pierce the body."""
+        return (self.centre_x,)
+
     def _field(self, coords: list, y_tip, ops: _Ops) -> tuple:
         """(φ, [n components]) at the point with coordinates `coords` (2 or 3 of them)."""
         raise NotImplementedError
@@ -296,6 +300,85 @@ class Bar(_RoundCone):
 
 
 @dataclass(frozen=True, kw_only=True)
+class Grating(_Prism):
+    """A square-wave grating, ridges up: `ridges` flat-topped ridges `width` wide, `period`
+    apart (grooves period − width wide, their flanks running down without end), centred on
+    centre_x; each ridge's top corners rounded by `corner_radius`. One ridge is a flat-topped
+    bar; two ridges, a bar with a gap of period − width in its middle (Johnson & Phillips
+    1981's gap stimulus).
+
+    Each ridge is a dilation (by the corner radius r) of a convex core: the strip |q_x| <= a
+    (a = width/2 − r) below the top. Distances to identical ridges at the same height grow
+    with the horizontal distance to their centre lines, so the nearest ridge is the one whose
+    centre line is nearest: x is folded onto it (one comparison per ridge) and that ridge's
+    exact distance taken; the union's distance is then exact.
+
+    Parameters
+    ----------
+    width : float
+        Width of each ridge's top (mm).
+    period : float
+        Centre-to-centre distance of neighbouring ridges (mm); above `width` when ridges > 1.
+    ridges : int
+        How many ridges (1: a flat-topped bar).
+    corner_radius : float
+        Radius of the rounded top corners (mm), at most width/2 (width/2: the round-tipped bar).
+    centre_x, centre_z : float, optional
+        Position of the grating's centre across (and, in 3D, along) the finger (mm).
+    axis : str, optional
+        3D: ``"z"`` (ridges along the finger) or ``"x"`` (across it).
+    """
+
+    width: float  # mm: the top of each ridge
+    period: float  # mm: ridge centre to ridge centre
+    ridges: int  # how many
+    corner_radius: float  # mm: the rounded top corners
+    shape: ClassVar[str] = "grating"
+
+    def __post_init__(self):
+        super().__post_init__()
+        if not isinstance(self.ridges, int):
+            raise InputError("grating.ridges", f"must be a whole number, got {self.ridges!r}.",
+                             "give the number of ridges, e.g. ridges = 5.")
+        if self.corner_radius > self.width / 2:
+            raise InputError("grating.corner_radius", f"{self.corner_radius} mm is larger than "
+                             f"half the ridge width ({self.width / 2} mm).",
+                             "use corner_radius <= width/2.")
+        if self.ridges > 1 and self.period <= self.width:
+            raise InputError("grating.period", f"{self.period} mm does not exceed the ridge "
+                             f"width {self.width} mm: the ridges would touch.",
+                             "use period > width (the groove is period − width wide).")
+
+    def tip_curvature_radius(self) -> float:
+        return self.corner_radius
+
+    def centres(self) -> np.ndarray:
+        """The ridges' centre lines relative to centre_x (mm), ascending."""
+        return (np.arange(self.ridges) - (self.ridges - 1) / 2) * self.period
+
+    def tip_xs(self) -> tuple[float, ...]:
+        """The middles of the ridges' tops (centre_x is a groove's middle for an even count)."""
+        return tuple(float(c) for c in self.centre_x + self.centres())
+
+    def _distance(self, px, py, y_tip, ops):
+        r, a = self.corner_radius, self.width / 2 - self.corner_radius
+        u = px - self.centre_x
+        last = float(self.centres()[-1])
+        q = ops.where(u > 0, u - last, u + last)  # beyond the ends: the outermost ridge
+        for c in self.centres()[1:-1]:  # <=: midway between two ridges, either is nearest
+            q = ops.where(ops.abs(u - float(c)) <= self.period / 2, u - float(c), q)
+        side, dx, dy = ops.sign(q), ops.abs(q) - a, py - (y_tip - r)
+        corner = ops.sqrt(dx * dx + dy * dy)
+        # Four parts of the core's distance: its corner (dx, dy > 0), its side (dx > dy), its
+        # top (dy >= dx); inside the core the larger of dx, dy is the (negative) distance.
+        phi = ops.where(dx > 0, ops.where(dy > 0, corner, dx), ops.where(dy > dx, dy, dx)) - r
+        nx = side * ops.where(dx > 0, ops.where(dy > 0, dx / corner, 1.0),
+                              ops.where(dy > dx, 0.0, 1.0))
+        ny = ops.where(dx > 0, ops.where(dy > 0, dy / corner, 0.0), ops.where(dy > dx, 1.0, 0.0))
+        return phi, nx, ny
+
+
+@dataclass(frozen=True, kw_only=True)
 class Sphere(Indenter):
     """A rigid sphere (a round probe, 3D only): centre (centre_x, y_tip − radius, centre_z).
     φ = |x − c| − radius and n = (x − c)/|x − c|, exact everywhere but at the centre."""
@@ -316,7 +399,7 @@ class Sphere(Indenter):
 
 
 SHAPES: dict[str, type[Indenter]] = {
-    cls.shape: cls for cls in (Wedge, Bar, Plate, Cylinder, Sphere)}
+    cls.shape: cls for cls in (Wedge, Bar, Plate, Cylinder, Grating, Sphere)}
 
 
 def make_indenter(data: dict[str, Any], where: str = "indenter") -> Indenter:

@@ -132,18 +132,7 @@ class NitscheContact:
         method: str = "nitsche",
         smoothing: float = 0.0,
     ):
-        if method not in CONTACT_METHODS:
-            raise InputError("model.contact", f"unknown contact method {method!r}.",
-                             f"use one of {CONTACT_METHODS}.")
-        if theta not in (-1, 0, 1):
-            raise InputError(
-                "contact.theta", f"got {theta}.",
-                "use 0 (default, robust), 1 (symmetric) or -1 (skew-symmetric).",
-            )
-        if not gamma0 > 0:
-            raise InputError("contact.gamma0", f"must be positive, got {gamma0}.", "use ~10.")
-        if not obstacles:
-            raise InputError("contact", "no indenter given.", "give at least one Obstacle.")
+        _check_options(method, theta, gamma0, smoothing, obstacles)
         domain = u.function_space.mesh
         # A fixed rule: UFL's estimate for these non-polynomial terms is huge and differs
         # between the residual and its derivative, which makes the Jacobian inexact.
@@ -164,9 +153,6 @@ class NitscheContact:
             self._normals.append(n)
             # The penalty method is Nitsche's without the traction estimate (t_n = 0, θ = 0).
             self._tn.append(ufl.dot(t, n) if method == "nitsche" else 0.0)
-        if not (isinstance(smoothing, int | float) and smoothing >= 0):
-            raise InputError("model.contact_smoothing", f"must be >= 0 (mm), got {smoothing!r}.",
-                             "use 0 (exact) or a gap width well below the penetration, ~1e-4.")
         self._pressures = [
             self.gamma * _ramp(tn / self.gamma - g, smoothing) for tn, g in zip(self._tn, gaps)
         ]
@@ -330,6 +316,25 @@ class NitscheContact:
         once per facet, each with its own cell's value: the field may jump there).
         """
         return self.surface_sampler(expr, points_per_facet)()
+
+
+def _check_options(method: str, theta: int, gamma0: float, smoothing, obstacles) -> None:
+    """The contact's options, each refused with its key and the fix."""
+    if method not in CONTACT_METHODS:
+        raise InputError("model.contact", f"unknown contact method {method!r}.",
+                         f"use one of {CONTACT_METHODS}.")
+    if theta not in (-1, 0, 1):
+        raise InputError(
+            "contact.theta", f"got {theta}.",
+            "use 0 (default, robust), 1 (symmetric) or -1 (skew-symmetric).",
+        )
+    if not gamma0 > 0:
+        raise InputError("contact.gamma0", f"must be positive, got {gamma0}.", "use ~10.")
+    if not (isinstance(smoothing, int | float) and smoothing >= 0):
+        raise InputError("model.contact_smoothing", f"must be >= 0 (mm), got {smoothing!r}.",
+                         "use 0 (exact) or a gap width well below the penetration, ~1e-4.")
+    if not obstacles:
+        raise InputError("contact", "no indenter given.", "give at least one Obstacle.")
 
 
 def _facet_points(tdim: int, n: int) -> np.ndarray:

@@ -1,0 +1,311 @@
+r"""Spatial acuity from the SA1 population: gratings and gaps pressed into the section, the
+SA1 spike counts along the pulp, and the widths at which an ideal observer of those counts
+tells the stimuli apart, next to the measured thresholds.
+
+**Stimuli** (the `grating` scene: 1 mm in 0.1 s, held to 1 s; `geometry.indenters.Grating`).
+Gratings: ridges and grooves of equal width w (period 2w, as the gratings of Johnson &
+Phillips 1981 and Van Boven & Johnson 1994), spanning at least `GRATING_SPAN` mm, in two
+spatial phases: a ridge centred at x = 0 (A) and a groove there (B, shifted by w). Gaps: a
+flat-topped bar `GAP_BAR` mm wide (no gap, A) against the same bar with a gap g cut in its
+middle (two ridges (bar − g)/2 wide, B).
+
+**Counts.** Each run samples a row of SA1 sites `SAMPLING` times denser than the class's
+spacing (10/√ρ = 1.195 mm at 70 per cm²); every `SAMPLING`-th site of it is a row at the real
+spacing, so one run gives `SAMPLING` populations offset from the stimulus by 0, s/k, 2s/k, ...
+(the afferents' positions relative to a grating are not under the experimenter's control). At
+each site the expected count μ over the whole run is the mean of the spike counts of the
+class's fitted afferents (TouchSim's four SA1 fits, noise off; `afferents.receptors`).
+
+**Criterion** (stated; this package's choice). The counts are Poisson with mean μ and the
+afferents independent. The ideal linear observer of two stimuli A and B (the optimal weights
+w_i = Δμ_i / σ_i²) reaches
+
+    d′² = Σ_i (μ_A,i − μ_B,i)² / σ_i²,     σ_i² = (μ_A,i + μ_B,i) / 2,
+
+summed over one row of afferents (sites with μ_A = μ_B = 0 add nothing). d′ is averaged over
+the `SAMPLING` offsets of the row, and the threshold is the width at which that mean d′
+reaches `LEVEL` = 1 (linear interpolation between the computed widths). The grating task (A vs
+B) is the plane-strain stand-in for the orientation task: in both, the two stimuli differ
+only in where the ridges and grooves fall on the afferents, not in the total load. One row is
+a slice of the areal population (the section has no second direction): rows along the ridges
+would add their d′² — n rows multiply d′ by √n, which lowers the threshold; see the docs.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+from ..outputs import write_json
+from .sweep import population_threshold
+
+#: The d′ at which two stimuli count as told apart.
+LEVEL = 1.0
+#: The sampled SA1 row is this many times denser than the class's spacing.
+SAMPLING = 4
+#: A grating spans at least this (mm): wider than the contact of a 1 mm press (|x| < ~4 mm).
+GRATING_SPAN = 12.0
+#: The gap stimulus: a flat-topped bar this wide (mm), with or without a gap in its middle.
+GAP_BAR = 4.0
+#: Corner radius of every ridge (mm; the data file's, an assumption).
+CORNER = 0.1
+#: Ridge widths (grating) and gaps (gap stimulus) of the default study (mm).
+WIDTHS = (0.5, 0.75, 1.0, 1.5, 2.0)
+GAPS = (0.5, 1.0, 1.5, 2.0)
+#: Measured thresholds at the fingertip (mm) with their sources.
+MEASURED = {
+    "grating": (0.94, "grating orientation, Van Boven & Johnson 1994 (Neurology 44:2361)"),
+    "gap": (0.87, "gap detection at P = 0.75, Johnson & Phillips 1981 (J Neurophysiol "
+                  "46:1177)"),
+}
+CRITERION = (f"ideal observer of one row of SA1 spike counts (Poisson, independent): d'^2 = "
+             f"sum (muA - muB)^2 / ((muA + muB)/2), mean over {SAMPLING} offsets of the row; "
+             f"threshold where d' = {LEVEL:g} (linear interpolation)")
+
+
+def poisson_dprime(mu_a, mu_b) -> float:
+    """d′ of the ideal linear observer of independent Poisson counts with means μ_A, μ_B:
+    √Σ (μ_A − μ_B)² / ((μ_A + μ_B)/2) (the variance averaged over the two stimuli)."""
+    a, b = np.asarray(mu_a, dtype=float), np.asarray(mu_b, dtype=float)
+    if a.shape != b.shape or np.any(a < 0) or np.any(b < 0):
+        raise ValueError("d': two arrays of non-negative mean counts of the same shape")
+    firing = (a + b) > 0
+    return float(np.sqrt(np.sum((a - b)[firing] ** 2 / ((a + b)[firing] / 2))))
+
+
+def row_dprimes(mu_a, mu_b, k: int = SAMPLING) -> np.ndarray:
+    """d′ of each of the k rows at the real spacing in a row sampled k times denser (sites
+    ordered along x): row j is every k-th site from site j."""
+    return np.array([poisson_dprime(mu_a[j::k], mu_b[j::k]) for j in range(k)])
+
+
+def dprime_threshold(widths, dprimes, level: float = LEVEL) -> dict:
+    """The width at which d′ rises through `level` (`threshold_mm`, linear interpolation,
+    None unless bracketed) and the smallest width with d′ >= level at it and every larger one
+    (`smallest_resolved_mm`): `sweep.population_threshold` on −d′ (there a ratio must fall
+    below the criterion; here d′ must rise above it)."""
+    return population_threshold(widths, -np.asarray(dprimes, dtype=float), -level)
+
+
+def grating_table(width: float, phase: str) -> dict:
+    """The indenter table of a grating of ridges and grooves `width` wide: phase "A" a ridge
+    centred at x = 0, "B" a groove there; an odd number of ridges spanning GRATING_SPAN."""
+    period = 2 * width
+    ridges = 2 * math.ceil(GRATING_SPAN / 2 / period) + 1
+    return {"file": "grating", "width": width, "period": period, "ridges": ridges,
+            "corner_radius": CORNER, "centre_x": 0.0 if phase == "A" else width}
+
+
+def gap_table(gap: float, bar: float = GAP_BAR) -> dict:
+    """The indenter table of a flat-topped bar `bar` wide, with a gap `gap` in its middle (two
+    ridges (bar − gap)/2 wide) or, for gap = 0, without."""
+    if gap == 0:
+        return {"file": "grating", "width": bar, "period": bar, "ridges": 1,
+                "corner_radius": CORNER, "centre_x": 0.0}
+    return {"file": "grating", "width": (bar - gap) / 2, "period": (bar + gap) / 2,
+            "ridges": 2, "corner_radius": CORNER, "centre_x": 0.0}
+
+
+#: The package's two-point answers (the 2pt sweep, not rerun here) and the measured 2PT.
+TWO_POINT = (
+    ("two-point, strain criterion", "2.08", "2.1 ± 1.0", "Perez et al. 2000 (as Wu et al. "
+     "2004 cite); docs/benchmarks/2pt-sweep.md"),
+    ("two-point, SA1 dip (1-D Rayleigh)", "1.2–1.5 (~1.3)", "2.1 ± 1.0",
+     "coarse 2pt sweep: 1.2 mm merged, 1.5 mm resolved; docs/guide/frequency.md"),
+)
+#: The coarse mesh of the default study (the tests' and the docs' runs).
+COARSE = ("section.mesh.min_size=0.2", "section.mesh.max_size=1.0",
+          "section.mesh.bone_size=2.0", "output.pictures=false", "output.profile_points=61")
+
+
+def sampling_set(path: Path, source: str = "calibrated", k: int = SAMPLING) -> Path:
+    """A receptor set of the SA1 class of `source` only, its row sampled k times denser
+    (density × k²), written as TOML to `path` (rank 0): the runs' `output.receptors`."""
+    from ..afferents.receptors import load_receptors
+    from ..scene import toml_value
+
+    record = load_receptors(source).record()
+    sa1 = dict(record["SA1"], density=record["SA1"]["density"] * k**2)
+    sa1["description"] = f"{source}'s SA1, sampled {k} times denser along the row"
+    lines = [f"name = {toml_value(f'{source}-sa1-x{k}')}", "[sites]",
+             f"half_width = {toml_value(float(record['sites']['half_width']))}", "[SA1]"]
+    lines += [f"{key} = {toml_value(value)}" for key, value in sa1.items()]
+    if MPI.COMM_WORLD.rank == 0:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text("\n".join(lines) + "\n")
+    MPI.COMM_WORLD.barrier()
+    return path
+
+
+def expected_counts(run_dir, population) -> tuple[np.ndarray, np.ndarray]:
+    """(x_mm, μ) of the SA1 sites of a run, ordered along x: μ is the mean over the class's
+    fits of each fitted afferent's spike count over the whole run, all driven by the site's
+    own samples (noise off)."""
+    from ..afferents.receptors import afferent_responses, saal_spikes
+
+    responses = afferent_responses(run_dir, population)
+    sa1 = responses.of("SA1")
+    order = np.argsort(responses.x[sa1])
+    x, stimulus = responses.x[sa1][order], responses.stimulus[:, sa1][:, order]
+    c = population["SA1"]
+    fits = list(range(len(c.saal.fits)))
+    drives = np.repeat(stimulus.T, len(fits), axis=0)  # each site once per fit
+    trains = saal_spikes(c, fits * len(x), responses.time, drives)
+    counts = np.array([len(t) for t in trains], dtype=float).reshape(len(x), len(fits))
+    return x, counts.mean(axis=1)
+
+
+def study_jobs(out: Path, widths, gaps, overrides=()) -> list[tuple]:
+    """(label, scene, directory) of every run: each width's gratings A and B, the bar without
+    a gap and each gap."""
+    from ..scene import load_scene, toml_value
+
+    receptors = sampling_set(out / "sa1-row.toml")
+    common = [*overrides, f"output.receptors={toml_value(str(receptors))}"]
+    tables = [(f"grating-w{w:g}-{p}", grating_table(w, p)) for w in widths for p in "AB"]
+    tables += [(f"gap-g{g:g}", gap_table(g)) for g in ((0.0, *gaps) if gaps else ())]
+    return [(label, load_scene("grating", [*common, f"indenters=[{toml_value(t)}]"]),
+             out / label) for label, t in tables]
+
+
+def run_acuity(out, widths=WIDTHS, gaps=GAPS, overrides=(), progress: bool = True) -> dict:
+    """Run every stimulus (side by side under MPI), then per task the d′ of each width and
+    the threshold: out/acuity.csv, counts.csv, summary.json, acuity.md (the table) and
+    acuity.png. Returns the summary (on every rank)."""
+    from ..afferents.receptors import load_receptors
+    from ..runner import run_side_by_side
+
+    out = Path(out)
+    jobs = study_jobs(out, widths, gaps, overrides)
+    run_side_by_side([(scene, where) for _, scene, where in jobs], progress=progress)
+    result = None
+    if MPI.COMM_WORLD.rank == 0:
+        population = load_receptors(out / "sa1-row.toml")
+        counts = {label: expected_counts(where, population) for label, _, where in jobs}
+        result = summarise(counts, widths, gaps)
+        _write_tables(out, counts, result)
+        plot_acuity(result, counts, out / "acuity.png")
+    result = MPI.COMM_WORLD.bcast(result, root=0)
+    write_json(out / "summary.json", result, MPI.COMM_WORLD)
+    return result
+
+
+def summarise(counts: dict, widths, gaps) -> dict:
+    """Per task the widths, the d′ per row offset and their mean, the threshold and the
+    measured one, from the expected counts of every run ({label: (x, μ)})."""
+    def task(pairs, sizes, name):
+        rows = [row_dprimes(counts[a][1], counts[b][1]).tolist() for a, b in pairs]
+        mean = [float(np.mean(r)) for r in rows]
+        return {"widths_mm": list(sizes), "dprime_rows": rows, "dprime": mean,
+                **dprime_threshold(sizes, mean), "measured_mm": MEASURED[name][0],
+                "measured_source": MEASURED[name][1]}
+
+    return {"criterion": CRITERION, "sampling": SAMPLING, "gap_bar_mm": GAP_BAR,
+            "grating": task([(f"grating-w{w:g}-A", f"grating-w{w:g}-B") for w in widths],
+                            widths, "grating"),
+            "gap": task([("gap-g0", f"gap-g{g:g}") for g in gaps], gaps, "gap")}
+
+
+def read_counts(path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """counts.csv read back: {run: (x_mm, expected_count)}."""
+    import csv
+
+    runs: dict[str, list] = {}
+    with Path(path).open() as f:
+        for row in csv.DictReader(f):
+            runs.setdefault(row["run"], []).append((float(row["x_mm"]),
+                                                    float(row["expected_count"])))
+    return {label: tuple(np.array(column) for column in zip(*rows))
+            for label, rows in runs.items()}
+
+
+def acuity_table(result: dict) -> str:
+    """The predicted thresholds next to the measured ones, and the package's 2PT answers, as
+    a Markdown table."""
+    lines = ["| task | this package (mm) | measured (mm) | source / criterion |",
+             "| --- | --- | --- | --- |"]
+    for name, what in (("grating", "grating (ridge = groove width), A vs B"),
+                       ("gap", f"gap in a {result['gap_bar_mm']:g} mm bar vs none")):
+        t = result[name]
+        if t["widths_mm"]:
+            lines.append(f"| {what} | {_threshold_text(t)} | {t['measured_mm']:g} | "
+                         f"{t['measured_source']} |")
+    lines += [f"| {what} | {ours} | {measured} | {source} |"
+              for what, ours, measured, source in TWO_POINT]
+    return "\n".join(lines) + "\n"
+
+
+def _write_tables(out: Path, counts: dict, result: dict) -> None:
+    """acuity.csv (d′ per task and width), counts.csv (μ per run and site), acuity.md."""
+    with (out / "acuity.csv").open("w") as f:
+        f.write("task,width_mm,dprime," + ",".join(f"dprime_row{j}" for j in range(SAMPLING))
+                + "\n")
+        for name in ("grating", "gap"):
+            t = result[name]
+            for w, d, rows in zip(t["widths_mm"], t["dprime"], t["dprime_rows"]):
+                f.write(f"{name},{w:g},{d:.6g}," + ",".join(f"{r:.6g}" for r in rows) + "\n")
+    with (out / "counts.csv").open("w") as f:
+        f.write("run,x_mm,expected_count\n")
+        for label, (x, mu) in counts.items():
+            f.writelines(f"{label},{xi:.6f},{m:.6g}\n" for xi, m in zip(x, mu))
+    (out / "acuity.md").write_text(f"Criterion: {result['criterion']}.\n\n"
+                                   + acuity_table(result))
+
+
+def plot_acuity(result: dict, counts: dict, path: Path) -> None:
+    """d′ against width per task with the criterion and the measured thresholds; the count
+    profiles of the two stimuli of one grating and one gap."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(12.0, 3.9), layout="constrained")
+    ax, grating, gap = fig.subplots(1, 3)
+    for name, colour in (("grating", "C0"), ("gap", "C1")):
+        t = result[name]
+        if not t["widths_mm"]:
+            continue
+        ax.plot(t["widths_mm"], t["dprime"], "o-", color=colour,
+                label=f"{name}: predicted {_threshold_text(t).split(' (')[0]} mm")
+        ax.plot(np.repeat(t["widths_mm"], SAMPLING), np.ravel(t["dprime_rows"]), ".",
+                color=colour, alpha=0.35)
+        ax.axvline(t["measured_mm"], color=colour, ls=":",
+                   label=f"{name}: measured {t['measured_mm']:g} mm")
+    ax.axhline(LEVEL, color="k", lw=0.8, ls="--", label=f"d′ = {LEVEL:g}")
+    ax.set(xlabel="ridge width or gap (mm)", ylabel="d′ of one SA1 row (dots: its offsets)",
+           title="SA1 ideal observer, Poisson counts")
+    ax.legend(fontsize=7)
+    for panel, name in ((grating, "grating"), (gap, "gap")):
+        sizes = result[name]["widths_mm"]
+        if not sizes:
+            panel.set_axis_off()
+            continue
+        w = min(sizes, key=lambda v: abs(v - 1.0))  # the one nearest 1 mm
+        if name == "grating":
+            _profiles(panel, counts, f"grating-w{w:g}-A", f"grating-w{w:g}-B",
+                      ("ridge at x = 0", "groove at x = 0"),
+                      f"grating, {w:g} mm ridges and grooves")
+        else:
+            _profiles(panel, counts, "gap-g0", f"gap-g{w:g}", ("no gap", f"{w:g} mm gap"),
+                      f"{result['gap_bar_mm']:g} mm bar, with and without a gap")
+    fig.savefig(path, dpi=150)
+
+
+def _threshold_text(task: dict) -> str:
+    """The threshold, or where it lies when the computed widths do not bracket it."""
+    if task["threshold_mm"] is not None:
+        return f"{task['threshold_mm']:.2f}"
+    if task["smallest_resolved_mm"] is not None:  # every width passes
+        return f"< {min(task['widths_mm']):g} (d′ ≥ 1 at every width)"
+    return f"> {max(task['widths_mm']):g} (d′ < 1 at the largest)"
+
+
+def _profiles(ax, counts: dict, a: str, b: str, labels, title: str) -> None:
+    """The expected counts of the dense row of two runs (if both were run)."""
+    for label, name, style in zip((a, b), labels, ("o-", "s--")):
+        if label in counts:
+            ax.plot(*counts[label], style, ms=3, label=name)
+    ax.set(xlabel="x of the site (mm)", ylabel="expected SA1 spikes in 1 s", title=title,
+           xlim=(-5, 5))
+    ax.legend(fontsize=7)

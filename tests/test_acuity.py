@@ -1,0 +1,126 @@
+"""Acuity from the SA1 population (studies.acuity): the ideal observer's d′ of Poisson counts
+against its closed form and against simulated observers, the rows at the real spacing, the
+threshold's interpolation, the stimuli as indenters; one slow coarse study asserting the
+physics (finer gratings are harder to tell apart)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from fingertip_dolfinx.afferents.receptors import load_receptors
+from fingertip_dolfinx.geometry.indenters import make_indenter
+from fingertip_dolfinx.studies.acuity import (
+    GAP_BAR,
+    GRATING_SPAN,
+    LEVEL,
+    dprime_threshold,
+    gap_table,
+    grating_table,
+    poisson_dprime,
+    row_dprimes,
+    sampling_set,
+)
+
+
+def test_dprime_of_one_afferent_and_of_n_alike_is_the_closed_form():
+    """One afferent: |a − b| / √((a + b)/2); n independent alike afferents: √n times that;
+    silent afferents (a = b = 0) add nothing; the formula is symmetric."""
+    assert poisson_dprime([9.0], [4.0]) == pytest.approx(5 / math.sqrt(6.5), rel=1e-15)
+    assert poisson_dprime([9.0] * 16, [4.0] * 16) == pytest.approx(4 * 5 / math.sqrt(6.5))
+    assert poisson_dprime([9.0, 0.0], [4.0, 0.0]) == poisson_dprime([9.0], [4.0])
+    assert poisson_dprime([2.0, 0.0], [0.0, 3.0]) == poisson_dprime([0.0, 3.0], [2.0, 0.0])
+    assert poisson_dprime([2.0, 0.0], [0.0, 3.0]) == pytest.approx(math.sqrt(4 / 1 + 9 / 1.5))
+    with pytest.raises(ValueError):
+        poisson_dprime([1.0, -1.0], [1.0, 1.0])
+
+
+def test_dprime_is_what_the_optimal_linear_observer_of_poisson_counts_reaches():
+    """Simulated trials: the observer weighting each afferent by Δμ/σ² separates the two
+    stimuli by (mean difference)/√(mean variance) = d′. 40 000 trials per stimulus: the
+    estimate's standard error is ~√((1 + d′²/4)/N) ≈ 0.006 here, so 3 % is 5 errors wide."""
+    rng = np.random.default_rng(7)
+    mu_a = np.array([0.5, 2.0, 6.0, 1.0, 0.0, 3.0])
+    mu_b = np.array([1.5, 1.0, 4.0, 1.0, 0.2, 0.0])
+    w = (mu_a - mu_b) / ((mu_a + mu_b) / 2)
+    a = rng.poisson(mu_a, (40_000, 6)) @ w
+    b = rng.poisson(mu_b, (40_000, 6)) @ w
+    empirical = (a.mean() - b.mean()) / math.sqrt((a.var() + b.var()) / 2)
+    assert empirical == pytest.approx(poisson_dprime(mu_a, mu_b), rel=0.03)
+
+
+def test_rows_at_the_real_spacing_are_every_kth_site_of_the_dense_row():
+    a, b = np.arange(12.0), np.zeros(12)
+    rows = row_dprimes(a, b, k=4)
+    assert len(rows) == 4
+    for j in range(4):
+        assert rows[j] == pytest.approx(poisson_dprime(a[j::4], b[j::4]), rel=1e-15)
+
+
+def test_threshold_is_the_interpolated_crossing_of_the_level():
+    """d′ 0.2, 0.8, 1.6 at 0.5, 1, 1.5 mm: crosses 1 at 1 + 0.5 (1 − 0.8)/(1.6 − 0.8)."""
+    got = dprime_threshold([0.5, 1.0, 1.5], [0.2, 0.8, 1.6])
+    assert got["threshold_mm"] == pytest.approx(1.125, rel=1e-12)
+    assert got["smallest_resolved_mm"] == 1.5
+    assert dprime_threshold([0.5, 1.0], [0.2, 0.9]) == {"smallest_resolved_mm": None,
+                                                       "threshold_mm": None}
+    assert dprime_threshold([0.5, 1.0], [1.2, 2.0])["threshold_mm"] is None  # all pass
+    assert LEVEL == 1.0
+
+
+def shape(table: dict):
+    """The indenter a scene's table names (its `file` is the built-in grating)."""
+    assert table["file"] == "grating"
+    return make_indenter({"shape": "grating", **{k: v for k, v in table.items() if k != "file"}})
+
+
+@pytest.mark.parametrize("width", [0.5, 0.75, 2.0])
+def test_gratings_span_the_contact_and_phase_b_puts_a_groove_at_the_centre(width):
+    a, b = (shape(grating_table(width, p)) for p in "AB")
+    assert a.period == 2 * width and a.ridges % 2 == 1  # ridges = grooves; a ridge at 0
+    assert (a.ridges - 1) * a.period >= GRATING_SPAN
+    assert b.centre_x - a.centre_x == width  # ridges where A's grooves are
+    points = np.array([[0.0, 0.0]])
+    assert a.signed_distance_np(points, 0.0)[0][0] == 0.0  # x = 0 on A's ridge top
+    assert b.signed_distance_np(points, 0.0)[0][0] > 0  # and in B's groove
+
+
+def test_the_gap_stimulus_is_the_bar_with_its_middle_removed():
+    solid, gapped = shape(gap_table(0.0)), shape(gap_table(1.0))
+    assert solid.ridges == 1 and solid.width == GAP_BAR
+    assert gapped.ridges == 2 and gapped.period - gapped.width == 1.0  # the gap
+    assert gapped.period + gapped.width == GAP_BAR  # the same outer edges
+    x = np.array([[-1.9, -0.01], [0.0, -0.01], [1.9, -0.01]])
+    assert np.all(solid.signed_distance_np(x, 0.0)[0] < 0)
+    assert np.array_equal(gapped.signed_distance_np(x, 0.0)[0] < 0, [True, False, True])
+
+
+def test_the_sampling_set_is_the_calibrated_sa1_k_times_denser(tmp_path):
+    dense = load_receptors(sampling_set(tmp_path / "row.toml", k=4))
+    sa1 = load_receptors("calibrated")["SA1"]
+    assert [c.name for c in dense.classes] == ["SA1"]
+    assert dense["SA1"].spacing == pytest.approx(sa1.spacing / 4, rel=1e-12)
+    assert dense["SA1"].saal == sa1.saal and dense["SA1"].depth == sa1.depth
+
+
+@pytest.mark.slow
+def test_coarser_gratings_and_wider_gaps_are_told_apart_better(tmp_path):
+    """The coarse study at two grating widths and one gap: the SA1 counts of the two phases
+    differ more (root-mean-square over the row) and d′ is larger at the coarser grating, for
+    every offset of the row; the bar's 2 mm gap changes the counts."""
+    from fingertip_dolfinx.studies.acuity import COARSE, read_counts, run_acuity
+
+    result = run_acuity(tmp_path, widths=(0.5, 2.0), gaps=(2.0,), overrides=COARSE,
+                        progress=False)
+    counts = read_counts(tmp_path / "counts.csv")
+
+    def mu(label):
+        return counts[label][1]
+
+    rms = [np.sqrt(np.mean((mu(f"grating-w{w:g}-A") - mu(f"grating-w{w:g}-B")) ** 2))
+           for w in (0.5, 2.0)]
+    assert rms[1] > rms[0]
+    grating = result["grating"]
+    assert grating["dprime"][1] > grating["dprime"][0]
+    assert all(b > a for a, b in zip(*grating["dprime_rows"]))
+    assert result["gap"]["dprime"][0] > 0
