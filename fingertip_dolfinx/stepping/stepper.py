@@ -375,9 +375,10 @@ class TimeStepper:
         hotspot = getattr(problem, "residual_hotspot", None)
         where = None if hotspot is None else hotspot(self.snes.getFunction()[0])
         step.why = newton_failure(step.reason, where)
-        step.closed_iterates += self._closed is not None
-        if step.closed_iterates > 1 and self._heading_for(line.states, step.t_first,
-                                                           self._closed.limit):
+        closed = self._closed  # this attempt's closed iterate; an earlier one may have closed
+        step.closed_iterates += closed is not None
+        if closed is not None and step.closed_iterates > 1 and self._heading_for(
+                line.states, step.t_first, closed.limit):
             return self._closed
         return None
 
