@@ -170,14 +170,15 @@ def test_scene_imports_no_petsc_module():
 
 
 def test_a_failed_attempt_after_one_that_closed_the_pores_is_cut_not_a_crash():
-    """An earlier attempt of the step closed the pores (counted), this one failed without
-    closing them: the step is cut (no compaction: None), where the count alone once made the
-    stepper read the limit of a closed iterate that does not exist (AttributeError)."""
+    """Two earlier attempts of the step closed the pores (counted; the accepted states were not
+    heading there, so they were cut), this one failed without closing them: the step is cut
+    (no compaction: None), where the count alone once made the stepper read the limit of a
+    closed iterate that does not exist (AttributeError)."""
     from fingertip_dolfinx.stepping.stepper import TimeStepper, _Step
 
     stepper = SimpleNamespace(problem=SimpleNamespace(), snes=None, _closed=None,
                               _heading_for=lambda *args: True)
     step = _Step(t=0.0, dt=0.1, started=0.0, linear_before=0, reason=-5, t_first=0.1,
-                 closed_iterates=1)
+                 closed_iterates=2)
     assert TimeStepper._compaction(stepper, SimpleNamespace(states=[]), step) is None
-    assert step.closed_iterates == 1 and "Newton did not converge" in step.why
+    assert step.closed_iterates == 2 and "Newton did not converge" in step.why
