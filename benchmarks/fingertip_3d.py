@@ -24,7 +24,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import dolfinx.fem.petsc
 import numpy as np
 from mpi4py import MPI
 from timing import tally
@@ -54,6 +53,8 @@ def main():
 
     if args.assembly:
         return time_assembly(scene, out, args.assembly)
+    import dolfinx.fem.petsc  # after the package, which sets up the DOLFINx wheel
+
     jacobian = tally(dolfinx.fem.petsc, "assemble_jacobian")
     residual = tally(dolfinx.fem.petsc, "assemble_residual")
     load = os.getloadavg()
@@ -87,6 +88,8 @@ def main():
 
 def time_assembly(scene, out: Path, repeats: int) -> None:
     """Wall and CPU seconds of one Jacobian assembly (min over `repeats`) at a smooth state."""
+    import dolfinx.fem.petsc  # after the package, which sets up the DOLFINx wheel
+
     comm = MPI.COMM_WORLD
     job = Run(scene, out, comm, resume=False, progress=False)
     problem, nonlinear = job.problem, job.stepper.nonlinear
