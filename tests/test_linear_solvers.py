@@ -135,13 +135,15 @@ def test_harmonic_press_takes_the_scene_linear_solver():
 
 
 @pytest.mark.mpi
-def test_one_and_two_ranks_agree():
+@pytest.mark.parametrize("rigid", [True, False])
+def test_one_and_two_ranks_agree(rigid):
     """The iterative solve on all ranks against the same mesh solved on each rank alone
     (COMM_SELF): max |u| and the force agree within the sum of the last Newton corrections
-    (max |u| moves by at most the largest change of u)."""
+    (max |u| moves by at most the largest change of u). Elastic bone and nail: the stiff/soft
+    split's index sets across the partition."""
     results = []
     for comm in (MPI.COMM_SELF, MPI.COMM_WORLD):
-        problem, stepper, _ = _press("iterative", comm)
+        problem, stepper, _ = _press("iterative", comm, **{"model.rigid_bone": rigid})
         u = problem.u.x.array
         results.append((comm.allreduce(np.max(np.abs(u)), op=MPI.MAX), _last_update(stepper)))
         stepper.close()
