@@ -24,7 +24,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import dolfinx.fem.petsc
 import numpy as np
 from mpi4py import MPI
 from timing import tally
@@ -54,6 +53,10 @@ def main():
 
     if args.assembly:
         return time_assembly(scene, out, args.assembly)
+    import dolfinx.fem.petsc  # after the package, which sets up the DOLFINx wheel
+    from petsc4py import PETSc
+
+    PETSc.Log.begin()  # the linear solver's events: solve, preconditioner set-up, LU
     jacobian = tally(dolfinx.fem.petsc, "assemble_jacobian")
     residual = tally(dolfinx.fem.petsc, "assemble_residual")
     load = os.getloadavg()
@@ -80,13 +83,26 @@ def main():
     print(f"assembly on rank 0 (wall / CPU s per call): Jacobian {jacobian.calls} x "
           f"{jw:.2f} / {jc:.2f}, residual {residual.calls} x {rw:.3f} / {rc:.3f}; quadrature "
           f"degree {scene.model.quadrature_degree}")
+    print(f"linear solver on rank 0 (wall s in all / calls): {solver_events(PETSc)}")
     print(f"peak memory: {max(rss):.0f} MiB per rank (max), {sum(rss):.0f} MiB in all")
     print(f"peak force {summary['peak_force_N']:.4g} N (x{summary['mirror_factor']} for the "
           f"whole finger); results in {out}")
 
 
+def solver_events(PETSc) -> str:
+    """PETSc's wall seconds and calls of the linear solves (KSPSolve, which includes the
+    preconditioner's set-up, PCSetUp) and of LU factorisations (MUMPS, or the stiff block's)."""
+    parts = []
+    for name in ("KSPSolve", "PCSetUp", "MatLUFactorNum"):
+        info = PETSc.Log.Event(name).getPerfInfo()
+        parts.append(f"{name} {info.get('time', 0.0):.1f} s / {info.get('count', 0)}")
+    return ", ".join(parts)
+
+
 def time_assembly(scene, out: Path, repeats: int) -> None:
     """Wall and CPU seconds of one Jacobian assembly (min over `repeats`) at a smooth state."""
+    import dolfinx.fem.petsc  # after the package, which sets up the DOLFINx wheel
+
     comm = MPI.COMM_WORLD
     job = Run(scene, out, comm, resume=False, progress=False)
     problem, nonlinear = job.problem, job.stepper.nonlinear

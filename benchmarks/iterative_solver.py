@@ -8,6 +8,7 @@ Run it serially and under `mpiexec -n 2` for the rank comparison:
 
     python benchmarks/iterative_solver.py                       # h = 0.4 and 0.1 (4x finer)
     python benchmarks/iterative_solver.py --sizes 0.4 0.2 0.1 --bone elastic
+    python benchmarks/iterative_solver.py --bone elastic --set solver.snes_ksp_ew=false
     mpiexec -n 2 python benchmarks/iterative_solver.py --sizes 0.4
 """
 
@@ -28,10 +29,11 @@ from fingertip_dolfinx.stepping import StepOptions, TimeStepper
 STEPS = StepOptions(dt_initial=0.05, dt_min=0.05, dt_max=0.05, max_cuts=0)
 
 
-def run(h: float, linear: str, bone: str, comm) -> dict:
+def run(h: float, linear: str, bone: str, comm, overrides=()) -> dict:
     scene = load_scene("1pt", [f"section.mesh.min_size={h}", f"section.mesh.max_size={5 * h}",
                                f"section.mesh.bone_size={10 * h}",
-                               f"model.rigid_bone={'true' if bone == 'rigid' else 'false'}"])
+                               f"model.rigid_bone={'true' if bone == 'rigid' else 'false'}",
+                               *overrides])
     problem = FingertipProblem(build_mesh(scene.section, comm), scene.indenters, scene.history,
                                scene.materials, scene.model)
     stepper = TimeStepper(problem, STEPS, scene.petsc_options, linear=linear,
@@ -61,6 +63,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--sizes", type=float, nargs="+", default=[0.4, 0.1])
     parser.add_argument("--bone", choices=("rigid", "elastic"), default="rigid")
+    parser.add_argument("--set", dest="overrides", action="append", default=[],
+                        help="a scene override, e.g. solver.snes_ksp_ew=false (exact linear "
+                             "solves to ksp_rtol 1e-10)")
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
     say = print if comm.rank == 0 else (lambda *a, **k: None)
@@ -68,7 +73,7 @@ def main() -> None:
         f"{'Krylov/N':>8} {'s/step':>7} {'force N/mm':>16} {'max|u| mm':>12} {'last du':>8}")
     for h in args.sizes:
         for linear in ("direct", "iterative"):
-            r = run(h, linear, args.bone, comm)
+            r = run(h, linear, args.bone, comm, args.overrides)
             if "failed" in r:
                 say(f"{r['ranks']:>5} {h:>5} {args.bone:>7} {linear:>9} {r['dofs']:>7} "
                     f"failed: {r['failed']}")

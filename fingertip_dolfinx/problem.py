@@ -301,6 +301,14 @@ class FingertipProblem(SteppableState):
                 bcs.append(fem.dirichletbc(0.0, dofs, sub))
         return bcs
 
+    def stiff_cells(self) -> np.ndarray:
+        """The cells of the elastic stiff regions, bone and nail (17 GPa and 170 MPa against the
+        soft tissues' 10-100 kPa; a rigid one is clamped instead): the iterative linear solver
+        treats their block apart (stepping/linear.py). Local cell indices."""
+        rigid = self.laws.rigid_regions()
+        return np.concatenate([np.zeros(0, np.int32), *(
+            self.fmesh.cell_tags.find(self.tags[r]) for r in ("bone", "nail") if r not in rigid)])
+
     @property
     def mirror_factor(self) -> int:
         """2 for a half model (a `symmetry` plane): its forces times 2 are the whole finger's."""

@@ -14,17 +14,21 @@ displacement space: its near null space) and the pressure Schur complement
 S = C + B K⁻¹ Bᵀ by GAMG on S_p = C + M/(λ + 2μ) (M the pressure mass matrix, λ + 2μ the
 subcutaneous solid's P-wave modulus; C as assembled), "full" factorisation: of the Schur
 approximations and factorisations tried, the one with the fewest Krylov iterations. Without a
-pore law there is no split: FGMRES with GAMG on K (CG is not safe: contact makes K
-non-symmetric, Nitsche θ = 0). The iterative route is meant for rigid bone and nail: GAMG's
-coarse aggregates represent the bending of the thin, stiff nail plate poorly. MUMPS stays the
-default: in 2D it is faster at these sizes (LU fill ~ n log n); the Krylov route is for 3D.
-The measurements behind these choices: docs/benchmarks/measurements.md, "Linear solvers
-inside Newton".
+pore law there is no split: FGMRES on K alone (CG is not safe: contact makes K non-symmetric,
+Nitsche θ = 0). With bone and nail elastic, K itself is split into the stiff regions' dofs (LU)
+and the soft tissues' (GAMG), block Gauss–Seidel: GAMG's coarse aggregates represent the bending
+of the thin, stiff nail plate poorly (110-400 Krylov iterations per Newton step on K whole; with
+the split as many as with bone and nail rigid). Newton is inexact (Eisenstat–Walker): each
+linear solve is as tight as Newton's progress needs, not 1e-10. MUMPS stays the default: in 2D
+it is faster at these sizes (LU fill ~ n log n); the Krylov route is for 3D. The measurements
+behind these choices: docs/benchmarks/measurements.md, "Linear solvers inside Newton", and
+docs/benchmarks/solvers-3d.md.
 
 Both are chosen by scene data (`[solver] linear = "direct" | "iterative"`, checked by
 `options.check_linear`, which needs no PETSc); any PETSc option
 given in `[solver]` overrides the configuration's (under the stepper's prefix:
-`fieldsplit_u_pc_gamg_threshold = 0.02`, `ksp_rtol = 1e-10`, ...).
+`fieldsplit_u_pc_gamg_threshold = 0.02`, `snes_ksp_ew = false` with `ksp_rtol = 1e-10`, ...;
+with elastic bone and nail the soft block's GAMG options are `fieldsplit_u_fieldsplit_t_...`).
 
 The dofs of the block ("mpi" kind) matrix are, on each rank, the owned u dofs and then the
 owned p dofs; the split's index sets follow from the index maps. The near null space is
@@ -37,11 +41,11 @@ from __future__ import annotations
 import dolfinx.fem.petsc  # noqa: F401  (the PETSc assemblers)
 import numpy as np
 import ufl
-from dolfinx import fem
+from dolfinx import fem, la
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .options import check_linear
+from .options import DEFAULT_PETSC_OPTIONS, check_linear
 
 #: LU of the whole Jacobian (MUMPS): robust for contact and for the undrained saddle point.
 DIRECT_OPTIONS = {
@@ -50,11 +54,25 @@ DIRECT_OPTIONS = {
     "pc_factor_mat_solver_type": "mumps",
 }
 
-#: The Krylov tolerance (relative, unpreconditioned residual). Newton's own tolerances (snes_rtol
-#: 1e-9, snes_atol 1e-10 N/mm) need
+#: The Krylov tolerance (relative, unpreconditioned residual) of a Newton with exact linear solves
+#: (`snes_ksp_ew = false`). Newton's own tolerances (snes_rtol 1e-9, snes_atol 1e-10 N/mm) need
 #: each linear solve to reduce its residual further than Newton's quadratic rate would:
 #: an inexact Newton step with relative tolerance η converges linearly at rate η.
 KSP_RTOL = 1e-10
+
+#: Inexact Newton (Eisenstat & Walker 1996, their choice 2: η_k = γ (‖R_k‖/‖R_{k−1}‖)^α,
+#: γ 0.9, α (1+√5)/2): each linear solve only as tight as Newton's progress needs, loose far from
+#: the answer, tighter as the residual falls; Newton's own tolerances are unchanged, so the answer
+#: is the exact-solve one to those. The first solve's η0 = 0.1 (PETSc's 0.3 took one more Newton
+#: iteration on the 1pt fingertip for 11 fewer Krylov iterations). A loose solve leaves the soft
+#: tissues' rows, whose residual the stiff regions' rows swamp, far from solved: Newton needs more
+#: iterations where contact forms (20 in the first step of the 0.1 mm 1pt fingertip, direct: 8),
+#: so the route allows 25 before a step is cut. Measured: docs/benchmarks/solvers-3d.md.
+INEXACT_NEWTON = {"snes_ksp_ew": True, "snes_ksp_ew_version": 2, "snes_ksp_ew_rtol0": 0.1,
+                  "snes_max_it": 25}
+
+#: Newton's iterations per step with exact linear solves.
+DEFAULT_MAX_IT = DEFAULT_PETSC_OPTIONS["snes_max_it"]
 
 _KRYLOV = {
     "ksp_type": "fgmres",  # flexible: the field split's inner solves vary between iterations
@@ -64,6 +82,7 @@ _KRYLOV = {
     "ksp_gmres_restart": 200,
     "ksp_norm_type": "unpreconditioned",  # the tolerance on the true residual
     "ksp_error_if_not_converged": False,  # a failed solve fails Newton's step: it is cut
+    **INEXACT_NEWTON,
 }
 
 #: GAMG on the displacement block: smoothed aggregation with the rigid-body near null space,
@@ -84,11 +103,35 @@ _GAMG = {
 }
 
 
-def iterative_options(pressure: bool) -> dict:
+#: The displacement block with bone and nail elastic: a multiplicative (block Gauss–Seidel) field
+#: split into the stiff dofs "s" (every dof of a bone or nail cell, the interfaces included) and
+#: the soft tissues' "t": the stiff block by LU (MUMPS; few dofs: the bone and nail are meshed
+#: coarsely), the soft one by GAMG. GAMG on the whole block cannot coarsen the thin nail plate's
+#: bending (110-400 Krylov iterations per Newton step); the stiff block's exact solve removes it,
+#: and the soft tissues' small stiffness couples the two blocks weakly, so few sweeps do.
+#: Measured: docs/benchmarks/solvers-3d.md.
+_STIFF_SPLIT = {
+    "pc_type": "fieldsplit",
+    "pc_fieldsplit_type": "multiplicative",
+    "fieldsplit_s_ksp_type": "preonly",
+    "fieldsplit_s_pc_type": "lu",
+    "fieldsplit_s_pc_factor_mat_solver_type": "mumps",
+    "fieldsplit_t_ksp_type": "preonly",
+    **{f"fieldsplit_t_{k}": v for k, v in _GAMG.items()},
+}
+
+
+def iterative_options(pressure: bool, stiff: bool = False) -> dict:
     """The Krylov configuration (PETSc options without prefix): a Schur field split over
-    (u, p) if the problem has a pressure, else GAMG on K alone."""
+    (u, p) if the problem has a pressure, else the displacement block's preconditioner alone:
+    GAMG, or with elastic stiff regions (`stiff`) the stiff/soft split."""
+    block = _STIFF_SPLIT if stiff else _GAMG
     if not pressure:
-        return {**_KRYLOV, **_GAMG}
+        # Without the pore pressure, elastic stiff regions made the inexact Newton crawl (42
+        # iterations against 7 on the drained 1pt fingertip, 4x the exact solves' time):
+        # exact solves there.
+        exact = {"snes_ksp_ew": False, "snes_max_it": DEFAULT_MAX_IT} if stiff else {}
+        return {**_KRYLOV, **block, **exact}
     split = {
         "pc_type": "fieldsplit",
         "pc_fieldsplit_type": "schur",
@@ -97,14 +140,14 @@ def iterative_options(pressure: bool) -> dict:
         "fieldsplit_p_ksp_type": "preonly",
         "fieldsplit_p_pc_type": "gamg",
     }
-    split |= {f"fieldsplit_u_{k}": v for k, v in _GAMG.items()}
+    split |= {f"fieldsplit_u_{k}": v for k, v in block.items()}
     return {**_KRYLOV, **split}
 
 
-def options(linear: str, pressure: bool) -> dict:
+def options(linear: str, pressure: bool, stiff: bool = False) -> dict:
     """The PETSc options of the linear solver `linear` ("direct" or "iterative")."""
     check_linear(linear)
-    return dict(DIRECT_OPTIONS) if linear == "direct" else iterative_options(pressure)
+    return dict(DIRECT_OPTIONS) if linear == "direct" else iterative_options(pressure, stiff)
 
 
 def rigid_body_modes(V: fem.FunctionSpace) -> PETSc.NullSpace:
@@ -157,6 +200,32 @@ def split_index_sets(unknowns: list[fem.Function], A: PETSc.Mat) -> list[PETSc.I
     return sets
 
 
+def stiff_soft_sets(V: fem.FunctionSpace, cells: np.ndarray, modes: PETSc.NullSpace
+                    ) -> list[PETSc.IS]:
+    """The global index sets, within V's own numbering (the displacement block's rows), of
+    the owned dofs of the `cells` (any rank's: a dof on a partition boundary is stiff if a cell
+    of either rank is) and of the others; the latter carries the rigid-body `modes` restricted
+    to it, as its near null space."""
+    bs, n = V.dofmap.index_map_bs, V.dofmap.index_map.size_local * V.dofmap.index_map_bs
+    marks = fem.Function(V)
+    marks.x.array.reshape(-1, bs)[np.unique(V.dofmap.list[cells]), :] = 1.0
+    marks.x.scatter_reverse(la.InsertMode.add)
+    start, comm = V.dofmap.index_map.local_range[0] * bs, V.mesh.comm
+    stiff = marks.x.array[:n] > 0
+    sets = [PETSc.IS().createGeneral((start + np.flatnonzero(m)).astype(PETSc.IntType),
+                                     comm=comm) for m in (stiff, ~stiff)]
+    vectors = []
+    for mode in modes.getVecs():
+        v = PETSc.Vec().createMPI((int((~stiff).sum()), PETSc.DECIDE), bsize=bs, comm=comm)
+        v.array[:] = mode.getArray(readonly=True)[~stiff]
+        vectors.append(v)
+    _gram_schmidt(vectors)
+    sets[1].compose("nearnullspace", PETSc.NullSpace().create(vectors=vectors, comm=comm))
+    for iset in sets:
+        iset.setBlockSize(bs)
+    return sets
+
+
 class LinearSolver:
     """Configures a dolfinx NonlinearProblem's KSP for `linear` ("direct" or "iterative"):
     the options (`options`, to merge under the user's), then `attach` the split's index sets
@@ -167,7 +236,11 @@ class LinearSolver:
         self.problem = problem
         self.unknowns = list(problem.unknowns)
         self.pressure = len(self.unknowns) > 1
-        self.options = options(linear, self.pressure)
+        #: The elastic stiff regions' cells (bone, nail), if the problem tells them.
+        self.stiff = getattr(problem, "stiff_cells", lambda: np.zeros(0, np.int32))()
+        comm = self.unknowns[0].function_space.mesh.comm
+        self.split_stiff = comm.allreduce(len(self.stiff), op=MPI.SUM) > 0
+        self.options = options(linear, self.pressure, self.split_stiff)
         self._objects: list = []
 
     def attach(self, nonlinear, prefix: str, petsc_options: dict) -> None:
@@ -187,15 +260,44 @@ class LinearSolver:
         modes = rigid_body_modes(self.unknowns[0].function_space)
         self._objects.append(modes)
         pc = nonlinear.solver.getKSP().getPC()
+        V = self.unknowns[0].function_space
+        stiff = stiff_soft_sets(V, self.stiff, modes) if self.split_stiff else None
+        self._objects += stiff or []
         if self.pressure:
             sets = split_index_sets(self.unknowns, A)
             sets[0].compose("nearnullspace", modes)
             pc.setFieldSplitIS(("u", sets[0]), ("p", sets[1]))
             self._objects += sets
             self._schur_preconditioner(nonlinear, pc, sets[1])
+            if stiff:
+                self._split_u_block(nonlinear.solver, stiff)
+        elif stiff:
+            pc.setFieldSplitIS(("s", stiff[0]), ("t", stiff[1]))
         else:
-            A.setBlockSize(self.unknowns[0].function_space.dofmap.index_map_bs)
+            A.setBlockSize(V.dofmap.index_map_bs)
             A.setNearNullSpace(modes)
+
+    def _split_u_block(self, snes: PETSc.SNES, stiff: list[PETSc.IS]) -> None:
+        """Give the displacement block's own field split (stiff/soft) its index sets. That
+        block's preconditioner exists once the Schur split is set up, which needs the first
+        Jacobian: so at the first assembly, set the split up and hand them on (unless the
+        scene chose another preconditioner for the block: `fieldsplit_u_pc_type`)."""
+        J, P, (jacobian, args, kargs) = snes.getJacobian()
+        done = []
+
+        def first(snes, x, J_, P_):
+            jacobian(snes, x, J_, P_, *args, **(kargs or {}))
+            if done:
+                return
+            ksp = snes.getKSP()
+            ksp.setOperators(J_, P_)
+            ksp.getPC().setUp()
+            block = ksp.getPC().getFieldSplitSubKSP()[0].getPC()
+            if block.getType() == PETSc.PC.Type.FIELDSPLIT:
+                block.setFieldSplitIS(("s", stiff[0]), ("t", stiff[1]))
+            done.append(True)
+
+        snes.setJacobian(first, J, P)
 
     def _schur_preconditioner(self, nonlinear, pc, is_p: PETSc.IS) -> None:
         """S_p = J_pp + M/m for the pressure Schur complement S = J_pp + B K⁻¹ Bᵀ: B K⁻¹ Bᵀ of
