@@ -442,7 +442,7 @@ def relaxation_time(problem) -> float:
     pore = problem.laws.pore
     material = getattr(pore, "material", None)
     if material is not None:
-        X = problem.mesh.geometry.x[:, :2]
+        X = problem.mesh.geometry.x  # (n, 3); z = 0 in 2D
         local = float(np.ptp(X, axis=0).max()) if len(X) else 0.0
         size = problem.mesh.comm.allreduce(local, op=MPI.MAX)
         times.append(consolidation_time(material, size))
