@@ -12,6 +12,7 @@ resonance) the small-signal response is the instantaneous one, so
 
 import numpy as np
 import pytest
+from mpi4py import MPI
 
 from fingertip_dolfinx.afferents.receptors import ReceptorRecorder, Sites, load_receptors
 from fingertip_dolfinx.frequency_response import SiteTransfer, mesh_and_sites
@@ -41,17 +42,17 @@ DEPTH, DELTA = 0.5, 1e-4
 def pressed3d():
     scene = load_scene("vibrotactile-3d", VERY_COARSE)
     population = load_receptors("calibrated")
-    fm, _ = mesh_and_sites(scene, population, __import__("mpi4py").MPI.COMM_WORLD)
+    fm, _ = mesh_and_sites(scene, population, MPI.COMM_WORLD)
     problem = FingertipProblem(fm, scene.indenters, scene.history, scene.materials, scene.model)
     press(problem, RampHold(DEPTH, 0.5, 0.5), "held", scene.steps)
     solver = HarmonicSolver(linearise(problem))
-    yield problem, solver, population
+    yield problem, solver, population, scene.indenters[0].centre_z
     solver.close()
 
 
 def test_two_hertz_stiffness_is_the_instantaneous_tangent_in_3d(pressed3d):
     """To 1 % (G*(2 Hz) = 1 − O(1e-3) on this tissue; the step's tangent is exact)."""
-    problem, solver, _ = pressed3d
+    problem, solver, _, _ = pressed3d
     tangent = (step_force(problem, DEPTH + DELTA, [1e-9])
                - step_force(problem, DEPTH - DELTA, [1e-9])) / (2 * DELTA)
     K = solver.solve(2.0).stiffness
@@ -76,8 +77,7 @@ def test_site_transfer_at_two_hertz_is_the_instantaneous_change_in_3d(pressed3d,
     """Serial (samples on rank 0). Two points in the subcutaneous tissue under the probe, off
     its axis (so σ22 is not σ's (1, 0) entry by symmetry): Re H(2 Hz) = the central difference
     of the recorded quantities over a vanishing step to d ± δ, to 1 %."""
-    problem, solver, population = pressed3d
-    z = problem.obstacles[0].centre_z if hasattr(problem.obstacles[0], "centre_z") else 3.0
+    problem, solver, population, z = pressed3d
     points = np.array([[0.4, problem.y_touch + 2.0, z + 0.3],
                        [0.8, problem.y_touch + 2.5, z - 0.5]])
     sites = Sites(np.array(["SA1", "SA1"]), np.arange(2), points[:, 0], np.full(2, 2.0),
