@@ -58,10 +58,13 @@ from .afferents.receptors import (
     ReceptorRecorder,
     load_receptors,
     pressure_sampling,
+    surface_sites,
 )
 from .afferents.vibrotactile import plot_threshold_curves, vibration_thresholds
 from .errors import InputError, on_root
+from .geometry.fingertip3d import Fingertip3D
 from .geometry.mesh import build_mesh
+from .geometry.mesh3d import build_mesh3d
 from .harmonic import HarmonicSolver, complex_modulus, linearise, press
 from .harmonic_options import HarmonicOptions, parse_frequencies
 from .loading import RampHold, Vibration
@@ -80,6 +83,9 @@ THRESHOLD_COLUMNS = ("class", "index", "x_mm", "depth_mm", "frequency_Hz", "s0",
                      "H_abs_per_um", "I0_um", "I1_um")
 #: Drive unit of the transfer tables: per µm of indenter motion.
 PER_UM = 1e-3
+#: A 3D population's thresholds: of this many sites per class, the most responsive
+#: (`responsive_sites`); the transfer table keeps every site.
+THRESHOLD_SITES_3D = 16
 
 
 class SiteTransfer:
@@ -104,10 +110,7 @@ class SiteTransfer:
             if law.history is not None:  # each QLV region: its own G*(ω)
                 material.append((law.history.prony, cells,
                                  F * self._d(law.history.S_e) * F.T / ufl.det(F)))
-        every = np.arange(msh.topology.index_map(2).size_local
-                          + msh.topology.index_map(2).num_ghosts, dtype=np.int32)
-        self._scalars.append((self.e_min, every, fem.Expression(
-            self._d(principal_log_strains(F)[1]), ipoints)))
+        self._min_strain_plan(F, ipoints)
         degree = problem.options.quadrature_degree
         self.stress = QuadratureProjection(msh, stress, degree, "d_sigma")
         #: (Prony series, projection of its region's F DS_e[δu] Fᵀ/J) per QLV region.
@@ -116,6 +119,37 @@ class SiteTransfer:
                          for k, (prony, cells, expr) in enumerate(material)]
         self.sampler = PointSampler(msh, points)
         self._pressure_sampling(problem, points)
+
+    def _min_strain_plan(self, F, ipoints) -> None:
+        """δe_min, the derivative of the receptor recorder's e_min (post.DerivedFields). 2D: of
+        the UFL principal value. 3D: e_min = ½ ln c_min of b = F Fᵀ at the DG1 nodes (numpy's
+        eigensolver), so δe_min = n·δb·n/(2 c_min) there, n the unit eigenvector of c_min at
+        the pressed state (a simple eigenvalue) and δb = δF F0ᵀ + F0 δFᵀ."""
+        msh = self.problem.mesh
+        tdim = msh.topology.dim
+        self._b_min = None
+        if tdim == 2:
+            every = np.arange(msh.topology.index_map(2).size_local
+                              + msh.topology.index_map(2).num_ghosts, dtype=np.int32)
+            self._scalars.append((self.e_min, every, fem.Expression(
+                self._d(principal_log_strains(F)[1]), ipoints)))
+            return
+        tensor = fem.functionspace(msh, ("Discontinuous Lagrange", 1, (3, 3)))
+        b0 = fem.Function(tensor)
+        b0.interpolate(fem.Expression(F * F.T, tensor.element.interpolation_points))
+        c, n = np.linalg.eigh(b0.x.array.reshape(-1, 3, 3))  # ascending c
+        self._b_min = (c[:, 0], n[:, :, 0])
+        self._db = fem.Function(tensor)
+        self._db_expr = fem.Expression(self._d(F * F.T), tensor.element.interpolation_points)
+
+    def _update_min_strain(self) -> None:
+        """3D: δe_min at the DG1 nodes from the interpolated δb (see `_min_strain_plan`)."""
+        if self._b_min is None:
+            return
+        c, n = self._b_min
+        self._db.interpolate(self._db_expr)
+        db = self._db.x.array.reshape(-1, 3, 3)
+        self.e_min.x.array[:] = np.einsum("ki,kij,kj->k", n, db, n) / (2 * c)
 
     def _d(self, expr):
         """Dq[δu] as UFL, δu the Function `du`."""
@@ -130,6 +164,7 @@ class SiteTransfer:
         self.du.x.array[:] = arrays[0]
         for f, cells, expr in self._scalars:
             f.interpolate(expr, cells0=cells)
+        self._update_min_strain()
         for f in (self.sed, self.e_min):
             f.x.scatter_forward()
         self.stress.update()
@@ -143,10 +178,11 @@ class SiteTransfer:
             values["p"] = self.pressure(self.dp)
         if self.problem.mesh.comm.rank != 0:
             return None
+        yy = self.problem.mesh.geometry.dim + 1  # σ22 in the row-by-row (d, d) tensor
         out = {"sed": values["sed"][:, 0], "e_min": values["e_min"][:, 0],
-               "sigma22": values["sigma22"][:, 3]}
+               "sigma22": values["sigma22"][:, yy]}
         for k in range(len(self.material)):
-            out[f"material22_{k}"] = values[f"material22_{k}"][:, 3]
+            out[f"material22_{k}"] = values[f"material22_{k}"][:, yy]
         out["p"] = (np.where(self.in_tissue, values["p"][:, 0], 0.0) if "p" in values
                     else np.zeros_like(out["sed"]))
         return out
@@ -213,7 +249,7 @@ def run_frequency_response(scene: Scene, out: str | Path, *, frequencies=None,
     population = load_receptors(scene.outputs.receptors or "default")
     out = prepare_directory(Path(out), comm)
     started = wallclock.perf_counter()
-    fm = build_mesh(scene.section, comm)
+    fm, sites = mesh_and_sites(scene, population, comm)
     problem = FingertipProblem(fm, scene.indenters, scene.history, scene.materials, scene.model)
     dofs = sum(f.function_space.dofmap.index_map.size_global
                * f.function_space.dofmap.index_map_bs for f in problem.unknowns)
@@ -221,21 +257,26 @@ def run_frequency_response(scene: Scene, out: str | Path, *, frequencies=None,
     show(f"{scene.name}: {dofs} dofs; pressing to {pressing.depth:g} mm ({options.state})")
     pressed = press(problem, pressing, options.state, scene.steps, scene.petsc_options,
                     linear=scene.linear)
-    show(f"pressed: {pressed.force:.4g} N/mm after {pressed.steps} steps "
+    show(f"pressed: {pressed.force:.4g} {force_unit(problem)} after {pressed.steps} steps "
          f"({pressed.wall_time_s:.1f} s)")
-    pressed_sites = record_pressed_sites(problem, population, scene, out, comm, pressed.time)
+    pressed_sites = record_pressed_sites(problem, population, scene, out, comm, pressed.time,
+                                         sites)
     solver = HarmonicSolver(linearise(problem))
-    sites = population.sites(scene.section.outer)
+    at = sites.points if sites.sample_points is None else sites.sample_points
     try:
-        rows, site_rows, transfers = _sweep(solver, SiteTransfer(problem, sites.points), sites,
+        rows, site_rows, transfers = _sweep(solver, SiteTransfer(problem, at), sites,
                                             freqs, out, comm, show)
     finally:
         solver.close()
+    most = None if sites.sample_points is None else THRESHOLD_SITES_3D
     curves = on_root(comm, lambda: afferent_thresholds(population, sites, freqs, transfers,
-                                                       pressed_sites, out / "thresholds.csv"))
-    show(f"thresholds of {len(sites)} sites at {len(freqs)} frequencies: thresholds.csv")
+                                                       pressed_sites, out / "thresholds.csv",
+                                                       most_responsive=most))
+    show(f"thresholds at {len(freqs)} frequencies: thresholds.csv")
     summary = _summary(scene, fm, dofs, pressed, solver, rows, options, comm,
                        wallclock.perf_counter() - started)
+    summary["force_unit"] = force_unit(problem)
+    summary["mirror_factor"] = problem.mirror_factor
     write_json(out / "summary.json", summary, comm)
     if scene.outputs.pictures:  # every file is written when any rank returns (rank 0 draws)
         on_root(comm, lambda: _figures(rows, site_rows, curves, population, scene, options,
@@ -243,12 +284,31 @@ def run_frequency_response(scene: Scene, out: str | Path, *, frequencies=None,
     return summary
 
 
+def mesh_and_sites(scene: Scene, population, comm):
+    """The scene's mesh and the population's sites on it: one row per class along the
+    section in 2D, over the pulp surface of the whole finger in 3D (`surface_sites`; a half
+    model's mirrored sites read their mirror images, `Sites.sample_points`)."""
+    if isinstance(scene.section, Fingertip3D):
+        fm = build_mesh3d(scene.section, comm)
+        return fm, surface_sites(population, fm, scene.section.half)
+    return build_mesh(scene.section, comm), population.sites(scene.section.outer)
+
+
+def force_unit(problem) -> str:
+    """The unit of the indenter force and of K(ω) = δf/δd: per mm of thickness in plane
+    strain; in 3D the model's own (a half model's: half the whole finger's, `mirror_factor`)."""
+    if problem.mesh.geometry.dim == 2:
+        return "N/mm"
+    return "N (half model)" if problem.mirror_factor == 2 else "N"
+
+
 def _sweep(solver, transfer, sites, freqs, out: Path, comm, show) -> tuple[list, list, list]:
     """One solve per frequency, each written as it comes: a row of frequency_response.csv and
     the sites' rows of receptor_transfer.csv. Returns (response rows, site rows, the transfer
     functions per frequency)."""
     response_log = CsvLog(out / "frequency_response.csv", RESPONSE_COLUMNS, comm)
-    transfer_log = CsvLog(out / "receptor_transfer.csv", TRANSFER_COLUMNS, comm)
+    transfer_log = CsvLog(out / "receptor_transfer.csv", site_columns(TRANSFER_COLUMNS, sites),
+                          comm)
     rows, site_rows, transfers = [], [], []
     try:
         for k, f in enumerate(freqs):
@@ -270,7 +330,8 @@ def _figures(rows, site_rows, curves, population, scene, options, pressing, summ
              out: Path) -> None:
     """impedance.png, receptor_transfer_<class>.png and thresholds.png (rank 0)."""
     plot_impedance(rows, out / "impedance.png", scene.name)
-    plot_receptor_transfer(site_rows, out, population, scene.name)
+    if not isinstance(scene.section, Fingertip3D):  # 3D sites are not a row along x
+        plot_receptor_transfer(site_rows, out, population, scene.name)
     plot_threshold_curves(curves, out / "thresholds.png", title=(
         f"{scene.name}, {options.state} at {pressing.depth:g} mm: most sensitive site"),
         note=summary["resonance_warning"])
@@ -294,12 +355,14 @@ def small_signal_response(scene: Scene, frequencies, state: str = "held",
         solver.close()
 
 
-def record_pressed_sites(problem, population, scene, out: Path, comm, t: float):
-    """The stimulus quantities at the population's sites in the pressed state, written as
-    receptors.csv (one row per site, time = the pressed state's) and returned (rank 0; None
-    elsewhere): the s0 the probe vibrates about."""
+def record_pressed_sites(problem, population, scene, out: Path, comm, t: float,
+                         sites=None):
+    """The stimulus quantities at the population's `sites` (default: the section's rows) in
+    the pressed state, written as receptors.csv (one row per site, time = the pressed state's)
+    and returned (rank 0; None elsewhere): the s0 the probe vibrates about."""
     derived = DerivedFields(problem.u, problem.fmesh.cell_tags, problem.region_energies())
-    recorder = ReceptorRecorder(problem, derived, population, scene.section.outer, out, comm)
+    recorder = ReceptorRecorder(problem, derived, population, scene.section.outer, out, comm,
+                                sites=sites)
     try:
         rows = recorder.sample(t)
         if rows is not None:
@@ -310,34 +373,63 @@ def record_pressed_sites(problem, population, scene, out: Path, comm, t: float):
 
 
 def afferent_thresholds(population, sites, freqs, transfers: list[dict], pressed: list[dict],
-                        path: Path) -> list:
+                        path: Path, most_responsive: int | None = None) -> list:
     """Per class, `vibrotactile.vibration_thresholds` of the mechanics' transfer functions at
     the class's sites (H: the class's quantity per mm of drive, `transfers` per frequency) about
     their pressed values (`pressed`: receptors.csv rows); thresholds.csv written (rank 0).
-    Returns the VibrationThresholds, one per class present."""
+    `most_responsive`: only that many sites per class, those of largest peak |H| over the
+    frequencies (`responsive_sites`). Returns the VibrationThresholds, one per class present."""
     curves, rows = [], []
     for cls in population.classes:
         mine = np.flatnonzero(sites.cls == cls.name)
         if len(mine) == 0:
             continue
         column, sign, _ = QUANTITIES[cls.quantity]
-        s0 = np.array([sign * pressed[i][column] for i in mine])
         # transfers carry the compression-positive sign already (SiteTransfer)
         h = np.array([t[cls.quantity][mine] for t in transfers])
+        keep = responsive_sites(h, most_responsive)
+        mine, h = mine[keep], h[:, keep]
+        s0 = np.array([sign * pressed[i][column] for i in mine])
         th = vibration_thresholds(cls, freqs, h, s0)
         curves.append(th)
         for j, f in enumerate(freqs):
-            rows += [{"class": cls.name, "index": int(sites.index[i]), "x_mm": sites.x[i],
+            rows += [{"class": cls.name, "index": int(sites.index[i]), **site_position(sites, i),
                       "depth_mm": sites.depth[i], "frequency_Hz": f, "s0": s0[k],
                       "H_abs_per_um": abs(h[j, k]) * PER_UM,
                       "I0_um": th.absolute[j, k] / PER_UM,
                       "I1_um": th.entrainment[j, k] / PER_UM} for k, i in enumerate(mine)]
-    log = CsvLog(path, THRESHOLD_COLUMNS, MPI.COMM_SELF)
+    log = CsvLog(path, site_columns(THRESHOLD_COLUMNS, sites), MPI.COMM_SELF)
     try:
         log.write(rows)
     finally:
         log.close()
     return curves
+
+
+def responsive_sites(h: np.ndarray, most: int | None) -> np.ndarray:
+    """Indices (ascending) of the `most` columns of the transfers h (frequencies × sites) with
+    the largest peak |H| (all if None). A site's thresholds scale as 1/|H| about a similar
+    pressed value, so these hold the most sensitive afferent of a 3D population (~1,000 sites
+    whose threshold search would take ~30× the section's)."""
+    if most is None or h.shape[1] <= most:
+        return np.arange(h.shape[1])
+    return np.sort(np.argsort(-np.abs(h).max(axis=0), kind="stable")[:most])
+
+
+def site_columns(columns: tuple, sites) -> tuple:
+    """`columns` with y_mm, z_mm after x_mm for 3D sites (their reference position)."""
+    if sites.points.shape[1] == 2:
+        return columns
+    k = columns.index("x_mm") + 1
+    return (*columns[:k], "y_mm", "z_mm", *columns[k:])
+
+
+def site_position(sites, i: int) -> dict:
+    """x_mm of site i (2D: the surface point's x), and y_mm, z_mm in 3D (the site's own)."""
+    if sites.points.shape[1] == 2:
+        return {"x_mm": sites.x[i]}
+    x, y, z = sites.points[i]
+    return {"x_mm": x, "y_mm": y, "z_mm": z}
 
 
 def response_row(r) -> dict:
@@ -355,7 +447,7 @@ def transfer_rows(frequency: float, values: dict | None, sites) -> list[dict]:
     rows = []
     for i in range(len(sites)):
         row = {"frequency_Hz": frequency, "class": sites.cls[i], "index": int(sites.index[i]),
-               "x_mm": sites.x[i], "depth_mm": sites.depth[i]}
+               **site_position(sites, i), "depth_mm": sites.depth[i]}
         for q, v in values.items():
             row[f"{q}_abs_per_um"] = abs(v[i]) * PER_UM
             row[f"{q}_phase_deg"] = math.degrees(np.angle(v[i]))

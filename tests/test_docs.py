@@ -48,7 +48,7 @@ def _accepted_keys(monkeypatch) -> dict[str, set[str]]:
     monkeypatch.setattr(loading, "check_keys", recording)
     for path in sorted(builtin_dir("scenes").glob("*.toml")):
         scene.load_scene(path.stem)
-    scene.load_scene("vibrotactile", {"harmonic": {"state": "held"}})  # no scene has one
+    scene.load_scene("vibrotactile", {"harmonic": {"state": "held"}})  # the section has none
     return seen
 
 

@@ -350,3 +350,14 @@ def test_a_peak_sharper_than_the_grid_is_reported_when_bracketed_closely():
     assert f[2] / f[0] < (1 + RESONANCE_PRECISION) / (1 - RESONANCE_PRECISION)
     (found,) = resonances(_oscillator_rows(f, 1e-4, pole=True))["probe_held"]
     assert found == pytest.approx(47.0, abs=f[1] - f[0])
+
+
+def test_a_3d_population_keeps_the_sites_of_largest_peak_response():
+    """The 3D thresholds are searched on the `most` sites whose |H| peaks highest over the
+    sweep (the most sensitive afferent among them); all sites when `most` is None or more."""
+    from fingertip_dolfinx.frequency_response import responsive_sites
+
+    h = np.array([[1.0, 5.0, 2.0, 0.1], [3.0, 1.0, -2.5j, 0.2]])  # peaks 3, 5, 2.5, 0.2
+    assert responsive_sites(h, 2).tolist() == [0, 1]
+    assert responsive_sites(h, 3).tolist() == [0, 1, 2]
+    assert responsive_sites(h, None).tolist() == responsive_sites(h, 9).tolist() == [0, 1, 2, 3]
