@@ -280,6 +280,7 @@ def loop(tmp_path_factory):
     return out, ad.read_adapt(out / "loop"), key_outputs(out / "reference")
 
 
+@pytest.mark.slow  # the loop fixture: three levels of runs
 def test_loop_stops_and_writes_a_normal_run_plus_adapt_json(loop):
     out, report, _ = loop
     from fingertip_dolfinx.result import Result
@@ -313,6 +314,7 @@ def test_loop_stops_and_writes_a_normal_run_plus_adapt_json(loop):
     assert cells == sorted(cells) and cells[-1] > cells[0]
 
 
+@pytest.mark.slow  # the loop fixture: three levels of runs
 def test_loop_estimates_bound_the_errors_against_a_finer_run(loop):
     _, report, reference = loop
     final = report["levels"][-1]

@@ -1,4 +1,5 @@
-"""The demos (demos/*.py) run end to end at their coarse settings: CI's run of the demos.
+"""The demos (demos/*.py) run end to end at their coarse settings, as scripts (slow: CI
+executes them in the documentation build).
 
 Each runs as a script, as a user would run it, into a temporary directory, and must exit 0
 and write its figure. The demos print their own numbers; their physics is checked where the
@@ -20,6 +21,9 @@ DEMOS = {
 }
 
 
+# CI executes every demo at its coarse settings when it builds the documentation (myst-nb,
+# errors raised): here they run on demand, with `make test-slow`.
+@pytest.mark.slow
 @pytest.mark.parametrize("demo", sorted(DEMOS))
 def test_demo_runs_coarse_and_writes_its_figure(demo, tmp_path):
     out = tmp_path / "out"

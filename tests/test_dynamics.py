@@ -262,6 +262,7 @@ def _step_oscillation(t, force, onset, window):
 
 
 @pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="serial: one run per rank would clash")
+@pytest.mark.slow  # 10 periods at 250 Hz on the fingertip: minutes
 def test_vibrotactile_contact_keeps_fine_steps_stable(tmp_path):
     """The coarse fingertip at 250 Hz, 80 steps a period (Δt = 50 µs), with the scene's
     (conservative, penalty) contact: the step-to-step oscillation of the force that the onset

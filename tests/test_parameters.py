@@ -13,6 +13,9 @@ from fingertip_dolfinx.cli import main
 from fingertip_dolfinx.scene import overrides_as_text
 from fingertip_dolfinx.studies.parameters import parameter_sweep
 
+# Sweeps of runs: a study (minutes), run on demand with `make test-slow`.
+pytestmark = pytest.mark.slow
+
 COARSE = ["section.mesh.min_size=0.2", "section.mesh.max_size=1.0", "section.mesh.bone_size=2.0",
           "output.profile_points=121", "protocol.end_time=5.0", "output.times=[1.0, 5.0]"]
 

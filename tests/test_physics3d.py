@@ -65,6 +65,7 @@ def hertz_sphere(n: float) -> dict:
             "gap_bound": gap_bound}
 
 
+@pytest.mark.slow  # three 3D meshes; benchmarks/hertz_sphere.py prints the same table
 def test_hertz_sphere_radius_and_peak_pressure_converge_to_theory():
     coarse, fine = hertz_sphere(2.0), hertz_sphere(5.0)
     print(f"Hertz 3D errors a, p0: h = a/2: {coarse['ea']:.2%}, {coarse['ep']:.2%}; "

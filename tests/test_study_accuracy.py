@@ -33,6 +33,7 @@ def _p2(result):
 
 # --- the run ---------------------------------------------------------------------------------
 
+@pytest.mark.slow  # the study fixture: three meshes, minutes
 def test_study_writes_its_files(study):
     out, result = study
     for name in ("accuracy.csv", "accuracy.md", "accuracy.png", "accuracy.json"):
@@ -48,6 +49,7 @@ def test_study_writes_its_files(study):
     assert {r["run"] for r in table} <= {p.name for p in out.iterdir()}
 
 
+@pytest.mark.slow  # the study fixture: three meshes, minutes
 def test_force_errors_decrease_under_mesh_refinement(study):
     rows = _p2(study[1])
     for key in ("force_N_per_mm_max_over_run", "force_N_per_mm_at_t_end"):
@@ -59,6 +61,7 @@ def test_force_errors_decrease_under_mesh_refinement(study):
     assert q2[key] < 3 * rows[0][key]
 
 
+@pytest.mark.slow  # the study fixture: three meshes, minutes
 def test_observed_order_of_the_peak_force_for_p2(study):
     """P2 displacements: the force is an energy-like output; contact with a kink in the
     pressure limits the solution's regularity (u in H^(5/2-eps)), giving O(h^1.5) at worst,
@@ -72,6 +75,7 @@ def test_observed_order_of_the_peak_force_for_p2(study):
     assert min(f1, f2, f3) - abs(f2 - f3) <= est["estimate"] <= max(f1, f2, f3)
 
 
+@pytest.mark.slow  # the study fixture: three meshes, minutes
 def test_cheapest_setting_is_named(study):
     result = study[1]
     best = result["cheapest_1pct"]
@@ -80,6 +84,7 @@ def test_cheapest_setting_is_named(study):
     assert best["family"] in result["sentence"] and "1 %" in result["sentence"]
 
 
+@pytest.mark.slow  # the study fixture: three meshes, minutes
 def test_adaptive_loop_estimates_are_checked_against_the_reference(study):
     """The adaptive loop from the coarsest mesh, tol = 5 %: its estimates bound its true
     errors, or the reference cannot tell (measured: every output bounded but the two forces,

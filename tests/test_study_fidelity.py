@@ -7,6 +7,9 @@ from fingertip_dolfinx.cli import main
 from fingertip_dolfinx.keys import KEYS
 from fingertip_dolfinx.studies.fidelity import LADDER, pick, read_table, run_fidelity_study
 
+# The ladder runs the scene once per rung: a study (minutes), run with `make test-slow`.
+pytestmark = pytest.mark.slow
+
 COARSE = ["section.mesh.min_size=0.3", "section.mesh.max_size=1.2", "section.mesh.bone_size=2.0",
           "output.profile_points=61"]
 

@@ -18,6 +18,9 @@ from mpi4py import MPI
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from two_routes import compare  # noqa: E402
 
+# Two long runs of a vibration, compared: run with `make test-slow`.
+pytestmark = pytest.mark.slow
+
 
 @pytest.mark.skipif(MPI.COMM_WORLD.size > 1, reason="serial: one run per rank would clash")
 def test_time_run_settles_on_the_frequency_response_at_10_hz():
