@@ -270,3 +270,31 @@ def test_steady_sliding_dissipates_mu_times_the_load_times_the_slip_distance():
     # |f| = μp with Q/(μP) − 1 of order (a/R)² = 4e-4 (the tilt of the surface): 1e-3
     # (measured 1e-4).
     assert dissipated == pytest.approx(expected, rel=1e-3)
+
+
+@pytest.mark.slow
+def test_the_shear_run_writes_stick_slip_surfaces_and_their_figure(tmp_path):
+    from fingertip_dolfinx.outputs import (
+        FRICTION_SURFACE_COLUMNS,
+        STICK_SLIP_COLUMNS,
+        SURFACE_COLUMNS,
+        read_csv,
+    )
+    from fingertip_dolfinx.runner import run_scene
+    from fingertip_dolfinx.scene import load_scene
+
+    run_scene(load_scene("shear"), tmp_path, progress=False)
+    surface = read_csv(tmp_path / "surface_profile.csv")
+    assert tuple(surface) == SURFACE_COLUMNS + FRICTION_SURFACE_COLUMNS
+    s = read_csv(tmp_path / "stick_slip.csv")
+    assert tuple(s) == STICK_SLIP_COLUMNS
+    history = read_csv(tmp_path / "history.csv")
+    assert np.array_equal(np.unique(s["time_s"]), history["time_s"])  # a map row every step
+    assert np.array_equal(s["contact_state"] == 2, s["stick_margin_MPa"] > 0)
+    assert np.all(s["pressure_MPa"][s["contact_state"] == 0] == 0)
+    stick = [np.sum(s["contact_state"][s["time_s"] == t] == 2) for t in history["time_s"]]
+    drag = history["tangential_displacement_mm"] > 0
+    assert max(stick) > 10 and stick[-1] <= 1  # a stick zone; gross slip at the end
+    # |q| <= μp at every node, to the rounding of the written values
+    assert np.all(np.abs(s["tangential_traction_MPa"]) <= 0.5 * s["pressure_MPa"] * (1 + 1e-9))
+    assert drag[-1] and (tmp_path / "friction.png").exists()

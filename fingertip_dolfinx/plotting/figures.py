@@ -211,11 +211,14 @@ def plot_friction(stick_slip: dict, history: dict, path: Path, mu: float,
     t = np.concatenate([[0.0], history["time_s"]])
     column, unit = force_column(history)
     normal = np.abs(np.concatenate([[0.0], history[column]]))
+    factor, label = display_unit(f"force ({unit})", float(np.max(normal)))
     tangential = np.abs(np.concatenate([[0.0], history[f"tangential_{column}"]]))
-    ax_f.plot(t, normal, "k-", label="normal force")
-    ax_f.plot(t, tangential, "o-", ms=3, color=STATE_COLOURS[1], label="tangential force")
-    ax_f.plot(t, mu * normal, "--", color="0.4", label=f"μ × normal force (μ = {mu:g})")
-    ax_f.set_ylabel(f"force ({unit})")
+    ax_f.plot(t, factor * normal, "k-", label="normal force")
+    ax_f.plot(t, factor * tangential, "o-", ms=3, color=STATE_COLOURS[1],
+              label="tangential force")
+    ax_f.plot(t, factor * mu * normal, "--", color="0.4",
+              label=f"μ × normal force (μ = {mu:g})")
+    ax_f.set_ylabel(label)
     ax_f.set_xlabel("time (s)")
     ax_f.legend(fontsize=8)
     ax_f.grid(alpha=0.3)
