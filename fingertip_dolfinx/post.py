@@ -224,19 +224,19 @@ class Profiles:
         X, x = self.problem.pulp_nodes()
         keep = np.abs(X[:, 0]) <= self.outputs.profile_half_width
         gathered = self.comm.gather((X[keep, 0], (x - X)[keep, 1]), root=0)
+        # collective: every rank samples the friction's fields
+        friction = None if self.problem.friction is None else self.stick_slip_rows(t)
         if self.comm.rank != 0:
             return []
         xs = np.concatenate([g[0] for g in gathered])
         ys = np.concatenate([g[1] for g in gathered])
         xs, unique = np.unique(np.round(xs, 12), return_index=True)
         rows = [{"x_mm": a, "time_s": t, "deflection_mm": b} for a, b in zip(xs, ys[unique])]
-        return rows if self.problem.friction is None else self._with_friction(rows, t)
+        return rows if friction is None else self._with_friction(rows, friction)
 
-    def _with_friction(self, rows: list[dict], t: float) -> list[dict]:
-        """The surface rows with the friction columns of the same node (rank 0)."""
-        friction = self.stick_slip_rows(t)
-        if self.comm.rank != 0:
-            return []
+    @staticmethod
+    def _with_friction(rows: list[dict], friction: list[dict]) -> list[dict]:
+        """The surface rows with the friction columns (`stick_slip_rows`) of the same node."""
         xs = np.array([r["x_mm"] for r in friction])
         keys = FRICTION_SURFACE_COLUMNS
         # the same nodes, their x from the dof table and from the facet points: the nearest
@@ -259,9 +259,10 @@ class Profiles:
         the coarse shear mesh it shows every other node sticking in gross slip). The state
         is that of the row's margin, so the two always agree."""
         X, values = self._friction_sampler()
-        X, values = X.reshape(-1, 3, X.shape[1]), values.reshape(-1, 3, values.shape[1])
+        # (facets, 3 points, 3 values); a rank without contact facets has empty, flat arrays
+        values = np.asarray(values).reshape(-1, 3, 3)
         # the middle's values for all three points of each facet
-        x, values = X[:, :, 0].ravel(), np.repeat(values[:, 1], 3, axis=0)
+        x, values = X[:, 0], np.repeat(values[:, 1], 3, axis=0)
         gathered = self.comm.gather((x, values), root=0)
         if self.comm.rank != 0:
             return []

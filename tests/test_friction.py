@@ -298,3 +298,24 @@ def test_the_shear_run_writes_stick_slip_surfaces_and_their_figure(tmp_path):
     # |q| <= μp at every node, to the rounding of the written values
     assert np.all(np.abs(s["tangential_traction_MPa"]) <= 0.5 * s["pressure_MPa"] * (1 + 1e-9))
     assert drag[-1] and (tmp_path / "friction.png").exists()
+
+
+#: The shear scene shortened: pressed 0.5 mm, dragged 0.2 mm (partial stick), no pictures.
+SHORT_SHEAR = ["protocol.end_time=0.7", "output.times=[0.5, 0.7]", "output.pictures=false",
+               "protocol.tangential={times = [0.0, 0.5, 0.7], values = [0.0, 0.0, 0.2]}",
+               "steps.dt_initial=0.25", "steps.dt_max=0.25"]
+
+
+@pytest.mark.mpi
+def test_stick_slip_surfaces_are_the_same_on_two_ranks_as_on_one(world_and_alone):
+    """The friction's surface sampling is collective: every rank joins it at output times."""
+    from fingertip_dolfinx.outputs import read_csv
+    from fingertip_dolfinx.scene import load_scene
+
+    shared, alone = world_and_alone(load_scene("shear", SHORT_SHEAR))
+    for name in ("stick_slip.csv", "surface_profile.csv"):
+        a, b = read_csv(shared / name), read_csv(alone / name)
+        assert tuple(a) == tuple(b) and len(a["x_mm"]) == len(b["x_mm"]) > 0
+        np.testing.assert_array_equal(a["contact_state"], b["contact_state"])
+        scale = np.max(b["pressure_MPa"])  # the sums' order differs: rounding only
+        np.testing.assert_allclose(a["pressure_MPa"], b["pressure_MPa"], atol=1e-8 * scale)
