@@ -31,6 +31,15 @@ HISTORY_COLUMNS = ("time_s", "indenter_displacement_mm", "force_N_per_mm", "newt
                    "dt_s", "reaction_N_per_mm", "max_penetration_mm", "min_J", "cuts",
                    "wall_time_s", "krylov_iterations")
 SURFACE_COLUMNS = ("x_mm", "time_s", "deflection_mm")
+#: With friction (2D): the columns surface_profile.csv gains and stick_slip.csv (every step)
+#: has: the contact pressure, the tangential traction along the surface (+x under the
+#: indenter), the stick margin μp − |q| and the contact state (`CONTACT_STATES`).
+FRICTION_SURFACE_COLUMNS = ("pressure_MPa", "tangential_traction_MPa", "stick_margin_MPa",
+                            "contact_state")
+STICK_SLIP_COLUMNS = ("x_mm", "time_s") + FRICTION_SURFACE_COLUMNS
+#: contact_state's codes: out of contact (p = 0), slipping (p > 0, margin <= 0), sticking
+#: (margin > 0, which needs p > 0).
+CONTACT_STATES = {0: "free", 1: "slip", 2: "stick"}
 #: A 3D run's: forces in N (a half model's are its own half: summary.json's `mirror_factor`
 #: gives the whole finger's), profiles across and along the finger, f(z) per unit length.
 HISTORY_COLUMNS_3D = tuple({"force_N_per_mm": "force_N", "reaction_N_per_mm": "reaction_N"}
@@ -103,7 +112,8 @@ def prepare_directory(out: Path, comm: MPI.Comm) -> Path:
 RUN_OUTPUTS = ("summary.json", "fields_t*s.npz", "*_t*s.png", "force_history.png",
                "surface_profile.png", "surface_across.png", "surface_along.png",
                "line_force.png", "receptors.csv", "*-from-*s.bp", "spikes.csv",
-               "afferents.csv", "rates.npz", "population.png")
+               "afferents.csv", "rates.npz", "population.png", "stick_slip.csv",
+               "friction.png")
 
 
 def clear_earlier_run(out: Path, comm: MPI.Comm) -> None:

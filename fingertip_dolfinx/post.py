@@ -8,12 +8,16 @@ parallel runs write the same rows.
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 import ufl
 from dolfinx import fem, geometry
 from dolfinx import mesh as dmesh
 
+from .outputs import FRICTION_SURFACE_COLUMNS
 from .physics.admissibility import reference_vertices
+from .physics.friction import contact_state
 from .physics.kinematics import hencky_strain, principal_log_strains
 
 
@@ -220,12 +224,58 @@ class Profiles:
         X, x = self.problem.pulp_nodes()
         keep = np.abs(X[:, 0]) <= self.outputs.profile_half_width
         gathered = self.comm.gather((X[keep, 0], (x - X)[keep, 1]), root=0)
+        # collective: every rank samples the friction's fields
+        friction = None if self.problem.friction is None else self.stick_slip_rows(t)
         if self.comm.rank != 0:
             return []
         xs = np.concatenate([g[0] for g in gathered])
         ys = np.concatenate([g[1] for g in gathered])
         xs, unique = np.unique(np.round(xs, 12), return_index=True)
-        return [{"x_mm": a, "time_s": t, "deflection_mm": b} for a, b in zip(xs, ys[unique])]
+        rows = [{"x_mm": a, "time_s": t, "deflection_mm": b} for a, b in zip(xs, ys[unique])]
+        return rows if friction is None else self._with_friction(rows, friction)
+
+    @staticmethod
+    def _with_friction(rows: list[dict], friction: list[dict]) -> list[dict]:
+        """The surface rows with the friction columns (`stick_slip_rows`) of the same node."""
+        xs = np.array([r["x_mm"] for r in friction])
+        keys = FRICTION_SURFACE_COLUMNS
+        # the same nodes, their x from the dof table and from the facet points: the nearest
+        nearest = [int(np.argmin(np.abs(xs - r["x_mm"]))) for r in rows]
+        return [r | {k: friction[i][k] for k in keys} for r, i in zip(rows, nearest)]
+
+    @cached_property
+    def _friction_sampler(self):
+        contact, friction = self.problem.contact, self.problem.friction
+        parts = ufl.as_vector([contact.pressure, friction.tangential_traction,
+                               friction.stick_margin])
+        # 3 points per facet: its ends and middle, the P2 displacement's nodes on it
+        return contact.surface_sampler(parts, points_per_facet=3)
+
+    def stick_slip_rows(self, t: float) -> list[dict]:
+        """With friction: the pressure, tangential traction, stick margin and contact state at
+        the pulp nodes with |x| <= profile_half_width (rank 0). Each value is a facet's at
+        its middle; a node at the ends of two facets gets the mean of theirs (at a facet's
+        ends the Nitsche traction estimate comes from one cell's stress and is noisy: on
+        the coarse shear mesh it shows every other node sticking in gross slip). The state
+        is that of the row's margin, so the two always agree."""
+        X, values = self._friction_sampler()
+        # (facets, 3 points, 3 values); a rank without contact facets has empty, flat arrays
+        values = np.asarray(values).reshape(-1, 3, 3)
+        # the middle's values for all three points of each facet
+        x, values = X[:, 0], np.repeat(values[:, 1], 3, axis=0)
+        gathered = self.comm.gather((x, values), root=0)
+        if self.comm.rank != 0:
+            return []
+        x = np.concatenate([g[0] for g in gathered])
+        v = np.concatenate([g[1] for g in gathered])
+        keep = np.abs(x) <= self.outputs.profile_half_width + 1e-12
+        xs, inverse, counts = np.unique(np.round(x[keep], 12), return_inverse=True,
+                                        return_counts=True)
+        mean = np.column_stack([np.bincount(inverse, w) for w in v[keep].T]) / counts[:, None]
+        states = contact_state(mean[:, 0], mean[:, 2])
+        return [{"x_mm": a, "time_s": t, "pressure_MPa": p, "tangential_traction_MPa": q,
+                 "stick_margin_MPa": m, "contact_state": int(s)}
+                for a, (p, q, m), s in zip(xs, mean, states)]
 
     def depth_rows(self, t: float) -> list[dict]:
         """Displacement, log strains, SED and pore pressure along each depth curve."""

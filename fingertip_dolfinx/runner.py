@@ -44,9 +44,11 @@ from .geometry.mesh3d import build_mesh3d
 from .outputs import (
     DEPTH_COLUMNS,
     DEPTH_COLUMNS_3D,
+    FRICTION_SURFACE_COLUMNS,
     HISTORY_COLUMNS,
     HISTORY_COLUMNS_3D,
     LINE_FORCE_COLUMNS,
+    STICK_SLIP_COLUMNS,
     SURFACE_COLUMNS,
     SURFACE_COLUMNS_3D,
     Checkpoint,
@@ -64,6 +66,7 @@ from .outputs import (
 from .plotting.figures import (
     plot_depth_profiles,
     plot_force_history,
+    plot_friction,
     plot_line_force,
     plot_population,
     plot_surface_profiles,
@@ -284,14 +287,19 @@ class Run:
         if not self.three_d:
             self.history = CsvLog(out / "history.csv", HISTORY_COLUMNS + self._friction_columns,
                                   comm, after)
-            self.surfaces = {"": CsvLog(out / "surface_profile.csv", SURFACE_COLUMNS, comm,
-                                        after)}
+            friction = p.friction is not None
+            self.surfaces = {"": CsvLog(out / "surface_profile.csv", SURFACE_COLUMNS
+                                        + (FRICTION_SURFACE_COLUMNS if friction else ()),
+                                        comm, after)}
+            self.stick_slip = CsvLog(out / "stick_slip.csv", STICK_SLIP_COLUMNS, comm,
+                                     after) if friction else None
             self.depth = CsvLog(out / "depth_profiles.csv", DEPTH_COLUMNS, comm, after)
             self.line_force = None
             self.profiles = Profiles(p, self.derived, scene.section.outer, scene.outputs)
             return
         self.history = CsvLog(out / "history.csv", HISTORY_COLUMNS_3D + self._friction_columns,
                               comm, after)
+        self.stick_slip = None  # the 3D surfaces carry no friction columns yet
         self.surfaces = {d: CsvLog(out / f"surface_{d}.csv", SURFACE_COLUMNS_3D, comm, after)
                          for d in ("across", "along")}
         self.depth = CsvLog(out / "depth_profiles.csv", DEPTH_COLUMNS_3D, comm, after)
@@ -373,6 +381,8 @@ class Run:
             self._write_output_time(report.time)
         if self.receptors is not None:
             self.receptors.write(report.time)
+        if self.stick_slip is not None:  # every step: the stick/slip map's time axis
+            self.stick_slip.write(self.profiles.stick_slip_rows(report.time))
         self._save_checkpoint(report)
         self.time = report.time
         self._show(report)
@@ -425,7 +435,7 @@ class Run:
         """Close every file, write summary.json and draw the figures; returns the summary.
         `status`: "completed", "failed" or "interrupted" (default: by `converged`)."""
         for log in (self.history, *self.surfaces.values(), self.depth, self.line_force,
-                    self.receptors):
+                    self.receptors, self.stick_slip):
             if log is not None:
                 log.close()
         self.fields.close()
@@ -452,6 +462,9 @@ class Run:
         if self.scene.outputs.pictures:
             with whole_files(self.out, "figures", MPI.COMM_SELF) as folder:
                 _figures(self.out, self.scene.title, folder)
+                if self.stick_slip is not None:
+                    _friction_figure(self.out, self.scene.title, folder,
+                                     max(self.problem.friction_coefficients))
                 if afferents is not None:
                     plot_population(afferents, self.scene.section.outer,
                                     folder / "population.png", self.scene.title)
@@ -495,6 +508,14 @@ def _figures_3d(out: Path, name: str, to: Path) -> None:
     f = read_csv(out / "line_force.csv")
     if f:
         plot_line_force(f, to / "line_force.png", title=name)
+
+
+def _friction_figure(out: Path, name: str, to: Path, mu: float) -> None:
+    """With friction (2D): the stick/slip map over time and the tangential against the
+    normal force, from stick_slip.csv and history.csv (rank 0; friction.png into `to`)."""
+    s, h = read_csv(out / "stick_slip.csv"), read_csv(out / "history.csv")
+    if s and h:
+        plot_friction(s, h, to / "friction.png", mu, title=name)
 
 
 def _figures(out: Path, name: str, to: Path) -> None:

@@ -41,6 +41,7 @@ def test_run_writes_every_documented_output(one_point_run):
     assert json.loads((out / "summary.json").read_text())["dofs"] == summary["dofs"]
     assert tuple(read_csv(out / "history.csv")) == HISTORY_COLUMNS
     assert tuple(read_csv(out / "surface_profile.csv")) == SURFACE_COLUMNS
+    assert not (out / "stick_slip.csv").exists()  # friction's, column for column as before
     assert tuple(read_csv(out / "depth_profiles.csv")) == DEPTH_COLUMNS
     for name in ("displacement.bp", "pore_pressure.bp", "log_strain.bp", "force_history.png",
                  "surface_profile.png", "depth_profiles_t1s.png", "field_u2_t1s.png",

@@ -63,6 +63,12 @@ def friction_coefficients(mu, count: int, where: str = "indenter.friction") -> t
     return tuple(float(v) for v in values)
 
 
+def contact_state(pressure, margin) -> np.ndarray:
+    """Codes per surface point: 2 stick where the stick margin μp − |q| > 0, else 1 slip
+    where the pressure p > 0, else 0 free (a margin > 0 needs p > 0)."""
+    return np.where(np.asarray(margin) > 0, 2, np.where(np.asarray(pressure) > 0, 1, 0))
+
+
 def project_on_ball(q, radius):
     """P_B(r)(q): q if |q| <= r, else r q/|q| (UFL; q a vector, r >= 0)."""
     norm = ufl.sqrt(ufl.dot(q, q))
@@ -94,18 +100,31 @@ class CoulombFriction:
         self.u_prev = fem.Function(u.function_space, name="u_prev")
         #: Each indenter's (x, y) at the last accepted step.
         self._previous = [fem.Constant(domain, np.zeros(2)) for _ in contact.obstacles]
-        self._forces, self.trial = [], []
+        self._forces, self.trial, self._slips = [], [], []
         for i in range(len(contact.obstacles)):
             q, radius = self._trial(i, gdim)
             self._forces.append(project_on_ball(q, radius))
             self.trial.append(radius - ufl.sqrt(ufl.dot(q, q)))
         nearest = contact._nearest
+        #: −f·Δs_t (MPa mm): the work the friction takes from the body per unit surface over
+        #: the step, by the nearest indenter (Δs_t its slip increment, f opposing it).
+        self.dissipation = -sum(c * ufl.dot(f, s)
+                                for c, f, s in zip(nearest, self._forces, self._slips))
         #: The tangential traction f on the body (MPa, nominal), the nearest indenter's.
         self.traction = sum(c * f for c, f in zip(nearest, self._forces))
         #: μ p − |t_t − γ Δs_t| of the nearest indenter: > 0 where the surface sticks, <= 0
         #: where it slips (or is free: there p = 0); its zero level is the stick zone's edge.
         self.stick_margin = sum(c * m for c, m in zip(nearest, self.trial))
         self.mark_accepted()
+
+    @cached_property
+    def tangential_traction(self):
+        """2D: f·t, the tangential traction's signed size (MPa), t = (n_y, −n_x) the nearest
+        indenter's tangent that points along +x under an indenter pressing up (n ≈ e_y): > 0
+        where the indenter pulls the surface towards +x."""
+        normals, nearest = self.contact._normals, self.contact._nearest
+        return sum(c * (f[0] * n[1] - f[1] * n[0])
+                   for c, f, n in zip(nearest, self._forces, normals))
 
     def _trial(self, i: int, gdim: int) -> tuple:
         """Indenter i's q = t_t − γ Δs_t (UFL vector) and the ball's radius μ p."""
@@ -115,6 +134,7 @@ class CoulombFriction:
                                for k in range(gdim)])
         tangential = ufl.Identity(gdim) - ufl.outer(n, n)
         slip = tangential * (contact.u - self.u_prev - moved)
+        self._slips.append(slip)
         # the penalty law has no traction estimate (t_n = 0 in the contact, t_t = 0 here)
         t_t = tangential * contact.traction if contact.method == "nitsche" else 0.0 * slip
         return t_t - self.gamma * slip, self.mu[i] * contact._pressures[i]
@@ -140,6 +160,18 @@ class CoulombFriction:
         """The live arrays of the last accepted state, by checkpoint name."""
         arrays = {"friction_u_prev": self.u_prev.x.array}
         return arrays | {f"friction_previous_{i}": c.value for i, c in enumerate(self._previous)}
+
+    @cached_property
+    def _dissipation_form(self) -> fem.Form:
+        return fem.form(self.dissipation * self.contact.ds)
+
+    def dissipated(self) -> float:
+        """The energy the friction dissipated over the step (N mm/mm in plane strain, N mm in
+        3D): ∫ −f·Δs_t ds over the reference surface. Measure it before `mark_accepted`.
+        Where the surface slips, |f| = μp opposes the slip: −f·Δs_t = μp|Δs_t|; where it
+        sticks, Δs_t is only the change of the elastic slip, of order |Δf|/γ_t."""
+        comm = self.contact.u.function_space.mesh.comm
+        return comm.allreduce(fem.assemble_scalar(self._dissipation_form), op=MPI.SUM)
 
     @cached_property
     def _force_forms(self) -> list[list[fem.Form]]:

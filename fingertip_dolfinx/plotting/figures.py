@@ -184,6 +184,48 @@ def force_column(history: dict) -> tuple[str, str]:
     return ("force_N", "N") if "force_N" in history else ("force_N_per_mm", "N/mm")
 
 
+#: The stick/slip map's colours, by `outputs.CONTACT_STATES` code: free, slip, stick.
+STATE_COLOURS = ("#f2f2f2", "#f28e2b", "#4e79a7")
+
+
+def plot_friction(stick_slip: dict, history: dict, path: Path, mu: float,
+                  title: str = "") -> None:
+    """Above: each surface point's state (free, slip, stick) at each step, its reference x
+    against time (a step's state fills the interval that ends at it). Below: the normal
+    force, the tangential force and Coulomb's bound μ times the normal force, against time."""
+    fig = Figure(figsize=(6.4, 6.4))
+    ax_m, ax_f = fig.subplots(2, 1, sharex=True, height_ratios=(3, 2))
+    times, x = np.unique(stick_slip["time_s"]), np.unique(stick_slip["x_mm"])
+    state = np.full((len(x), len(times)), np.nan)
+    state[np.searchsorted(x, stick_slip["x_mm"]),
+          np.searchsorted(times, stick_slip["time_s"])] = stick_slip["contact_state"]
+    t_edges = np.concatenate([[0.0], times])
+    x_edges = np.concatenate([[x[0]], 0.5 * (x[1:] + x[:-1]), [x[-1]]])
+    colours = matplotlib.colors.ListedColormap(STATE_COLOURS)
+    ax_m.pcolormesh(t_edges, x_edges, state, cmap=colours, vmin=-0.5, vmax=2.5)
+    ax_m.legend(handles=[Patch(color=c, label=n) for c, n in
+                         zip(STATE_COLOURS, ("free", "slip", "stick"))],
+                loc="upper left", fontsize=8)
+    ax_m.set_ylabel("surface point x (mm, reference)")
+    ax_m.set_title(title)
+    t = np.concatenate([[0.0], history["time_s"]])
+    column, unit = force_column(history)
+    normal = np.abs(np.concatenate([[0.0], history[column]]))
+    factor, label = display_unit(f"force ({unit})", float(np.max(normal)))
+    tangential = np.abs(np.concatenate([[0.0], history[f"tangential_{column}"]]))
+    ax_f.plot(t, factor * normal, "k-", label="normal force")
+    ax_f.plot(t, factor * tangential, "o-", ms=3, color=STATE_COLOURS[1],
+              label="tangential force")
+    ax_f.plot(t, factor * mu * normal, "--", color="0.4",
+              label=f"μ × normal force (μ = {mu:g})")
+    ax_f.set_ylabel(label)
+    ax_f.set_xlabel("time (s)")
+    ax_f.legend(fontsize=8)
+    ax_f.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=150)
+
+
 def plot_surface_profiles(profile: dict, path: Path, title: str = "", along: str = "x") -> None:
     """Deflection of the pulp surface along x (or z: `along`) at each output time (cf. the
     paper's Fig. 2)."""

@@ -13,7 +13,7 @@ from dolfinx import fem, mesh
 
 from ...geometry.indenters import Cylinder
 from ...physics.contact import NitscheContact, Obstacle
-from ...physics.friction import CoulombFriction
+from ...physics.friction import CoulombFriction, contact_state
 from .hertz import Hertz
 
 
@@ -149,7 +149,9 @@ def drag(problem: CattaneoMindlin, h_contact: float, shifts, *, press_steps: int
     """Press the cylinder by `problem.depth` (in `press_steps`), then move it along x through
     `shifts` (mm, increasing), one accepted step each; per step (press and drag): the shift,
     the forces P and Q (N/mm), Hertz's a from P, the measured stick half-width c and
-    Cattaneo–Mindlin's, the Newton iterations. Raises if a step does not converge."""
+    Cattaneo–Mindlin's, the Newton iterations, the contact face's points x, stick margins
+    and states (`contact_state`), the energy the friction dissipated over the step. Raises
+    if a step does not converge."""
     from mpi4py import MPI
 
     from .wiring import newton_problem
@@ -187,4 +189,7 @@ def _drag_row(problem: CattaneoMindlin, built: MindlinBlock, x_tip: float, its: 
             "c_theory": problem.stick_theory(P, Q), "newton_iterations": its,
             "q_error": float(np.mean(np.abs(profile["q"][inside] - q_theory))
                              / np.mean(np.abs(q_theory))),
+            "x": profile["x"], "margin": profile["margin"],
+            "state": contact_state(profile["p"], profile["margin"]),
+            "dissipated": built.friction.dissipated(),
             "cells": built.u.function_space.mesh.topology.index_map(2).size_global}
