@@ -132,6 +132,7 @@ def test_one_and_two_ranks_give_the_same_numbers(world_and_alone):
     np.testing.assert_allclose(pa["e_min"], pb["e_min"], atol=1e-8 * scale)
 
 
+@pytest.mark.slow  # a sweep of runs: a study, run with `make test-slow`
 @pytest.mark.mpi
 def test_two_point_sweep_reproduces_the_papers_trends(tmp_path_factory):
     """MODEL.md §4: the normalised variations of e11, e22 and SED change little from d = 4 to
