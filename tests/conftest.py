@@ -74,3 +74,32 @@ def collectives_in_step(comm):
     yield
     gc.collect()
     comm.barrier()
+
+
+@pytest.fixture
+def vanishing_steps():
+    """`values(problem, depths, sample, prefix)`: for each indentation depth, one vanishing time
+    step (Δt = 1e-9 s, backward Euler) of the pressed `problem` to that depth and `sample()`
+    after it; the problem's state is put back afterwards. The central difference of two such
+    samples is the instantaneous (small-signal) derivative the frequency route must match."""
+    from fingertip_dolfinx.harmonic import BACKWARD_EULER, StepOptions, TimeStepper
+
+    def values(problem, depths, sample, prefix: str) -> list:
+        saved = {k: a.copy() for k, a in problem.state_arrays().items()}
+        stepper = TimeStepper(problem, StepOptions(), prefix=prefix)
+        found = []
+        problem.dt.value = 1e-9
+        problem.rate_weights.value[:] = BACKWARD_EULER
+        for d in depths:
+            for o in problem.obstacles:
+                o.y_tip.value = problem.y_touch + d
+            assert stepper.solve_once()[0] > 0
+            found.append(sample())
+            problem.restore()
+        stepper.close()
+        problem.set_time(problem.time)
+        for name, array in problem.state_arrays().items():
+            array[:] = saved[name]
+        return found
+
+    return values

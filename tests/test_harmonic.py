@@ -199,7 +199,7 @@ def _sampled_quantities(problem, points) -> dict[str, np.ndarray]:
             "compressive_stress": -(sample(stress.stress)[:, 3] - p)}
 
 
-def test_site_transfer_at_two_hertz_is_the_instantaneous_change(pressed):
+def test_site_transfer_at_two_hertz_is_the_instantaneous_change(pressed, vanishing_steps):
     """Serial (the samples are gathered on rank 0). The transfer functions to the stimulus
     quantities at points in the subcutaneous tissue
     under the bar (where sed, −e_min and −σ22 − p all respond): Re of the 2 Hz transfer equals
@@ -207,27 +207,13 @@ def test_site_transfer_at_two_hertz_is_the_instantaneous_change(pressed):
     exact derivatives, the pore pressure and the QLV split δσ = Dσ|_{S0} + (G* − g∞) F DS_e Fᵀ/J
     agree with the nonlinear model."""
     from fingertip_dolfinx.frequency_response import SiteTransfer
-    from fingertip_dolfinx.harmonic import BACKWARD_EULER, StepOptions, TimeStepper
 
     problem, solver = pressed
     points = np.array([[0.0, problem.y_touch + 2.0], [0.3, problem.y_touch + 2.5]])
     transfer = SiteTransfer(problem, points)(solver.solve(2.0))
     depth, delta = problem.indentation(problem.time), 1e-4
-    saved = {k: a.copy() for k, a in problem.state_arrays().items()}
-    stepper = TimeStepper(problem, StepOptions(), prefix="transfer_check_")
-    values = []
-    problem.dt.value = 1e-9
-    problem.rate_weights.value[:] = BACKWARD_EULER
-    for d in (depth + delta, depth - delta):
-        for o in problem.obstacles:
-            o.y_tip.value = problem.y_touch + d
-        assert stepper.solve_once()[0] > 0
-        values.append(_sampled_quantities(problem, points))
-        problem.restore()
-    stepper.close()
-    problem.set_time(problem.time)
-    for name, array in problem.state_arrays().items():
-        array[:] = saved[name]
+    values = vanishing_steps(problem, (depth + delta, depth - delta),
+                             lambda: _sampled_quantities(problem, points), "transfer_check_")
     for q, v in transfer.items():
         difference = (values[0][q] - values[1][q]) / (2 * delta)
         assert v.real == pytest.approx(difference, rel=1e-2), q

@@ -17,10 +17,7 @@ from mpi4py import MPI
 from fingertip_dolfinx.afferents.receptors import ReceptorRecorder, Sites, load_receptors
 from fingertip_dolfinx.frequency_response import SiteTransfer, mesh_and_sites
 from fingertip_dolfinx.harmonic import (
-    BACKWARD_EULER,
     HarmonicSolver,
-    StepOptions,
-    TimeStepper,
     linearise,
     press,
     step_force,
@@ -73,7 +70,8 @@ def _recorded(problem, population, sites, out) -> dict[str, np.ndarray]:
             "compressive_stress": -np.array([r["sigma22_MPa"] for r in rows])}
 
 
-def test_site_transfer_at_two_hertz_is_the_instantaneous_change_in_3d(pressed3d, tmp_path):
+def test_site_transfer_at_two_hertz_is_the_instantaneous_change_in_3d(pressed3d, tmp_path,
+                                                                    vanishing_steps):
     """Serial (samples on rank 0). Two points in the subcutaneous tissue under the probe, off
     its axis (so σ22 is not σ's (1, 0) entry by symmetry): Re H(2 Hz) = the central difference
     of the recorded quantities over a vanishing step to d ± δ, to 1 %."""
@@ -83,21 +81,9 @@ def test_site_transfer_at_two_hertz_is_the_instantaneous_change_in_3d(pressed3d,
     sites = Sites(np.array(["SA1", "SA1"]), np.arange(2), points[:, 0], np.full(2, 2.0),
                   points)
     transfer = SiteTransfer(problem, points)(solver.solve(2.0))
-    saved = {k: a.copy() for k, a in problem.state_arrays().items()}
-    stepper = TimeStepper(problem, StepOptions(), prefix="transfer3d_check_")
-    values = []
-    problem.dt.value = 1e-9
-    problem.rate_weights.value[:] = BACKWARD_EULER
-    for d in (DEPTH + DELTA, DEPTH - DELTA):
-        for o in problem.obstacles:
-            o.y_tip.value = problem.y_touch + d
-        assert stepper.solve_once()[0] > 0
-        values.append(_recorded(problem, population, sites, tmp_path))
-        problem.restore()
-    stepper.close()
-    problem.set_time(problem.time)
-    for name, array in problem.state_arrays().items():
-        array[:] = saved[name]
+    values = vanishing_steps(problem, (DEPTH + DELTA, DEPTH - DELTA),
+                             lambda: _recorded(problem, population, sites, tmp_path),
+                             "transfer3d_check_")
     for q, v in transfer.items():
         difference = (values[0][q] - values[1][q]) / (2 * DELTA)
         assert np.all(np.abs(difference) > 0), q
