@@ -376,8 +376,8 @@ def test_the_sa1_under_the_bar_fires_on_the_ramp(one_point):
     1 mm ramp (tests/data/touchsim_reference.json) and recorded SA1 fire to sustained
     indentation. It runs fit 1, the least sensitive of the four; it fires because SA1's input
     scale is fitted to the sustained static input of TouchSim's ramp-and-hold (α = 45.3;
-    measured: 17 spikes from 0.40 s, 37 spikes/s over the last step, 0.71-1 s). With the sinusoids' α (12.44) it
-    was silent: the next test."""
+    measured: 17 spikes from 0.40 s, 37 spikes/s over the last step, 0.71-1 s). With the
+    sinusoids' α (12.44) it was silent: the next test."""
     r = afferent_responses(one_point, "calibrated")
     centre = r.of("SA1") & (r.x == 0.0)
     assert r.mean_rate[centre][0] > 1 and r.rate[-1, centre][0] > 5
