@@ -85,16 +85,28 @@ def phase_rates(trains) -> np.ndarray:
                       np.sum((t > RAMP) & (t <= HOLD_END)) / (HOLD_END - RAMP)] for t in trains])
 
 
-def package_rates(run: Path, cls):
-    """(ramp, hold) rates of every fit of `cls` at the site under the bar, and the stress
-    there at the end of the ramp (MPa)."""
+def site_history(run: Path, cls):
+    """(t, s): the class's quantity (compression positive) at its site under the bar, from
+    rest (t = 0, s = 0) through the run's steps."""
     from fingertip_dolfinx.result import Result
 
     table = Result(run).receptors()
     column, sign, _ = QUANTITIES[cls.quantity]
     rows = (table["class"] == cls.name) & (table["x_mm"] == 0.0)
-    t = np.concatenate([[0.0], table["time_s"][rows]])
-    s = np.concatenate([[0.0], sign * table[column][rows]])
+    return (np.concatenate([[0.0], table["time_s"][rows]]),
+            np.concatenate([[0.0], sign * table[column][rows]]))
+
+
+def hold_mean(t, s) -> float:
+    """The mean of s over the hold (RAMP to HOLD_END; the steps' values joined linearly)."""
+    grid = np.linspace(RAMP, HOLD_END, 9001)
+    return float(np.mean(np.interp(grid, t, s)))
+
+
+def package_rates(run: Path, cls):
+    """(ramp, hold) rates of every fit of `cls` at the site under the bar, and the stress
+    there at the end of the ramp (MPa)."""
+    t, s = site_history(run, cls)
     aff = cls.saal.afferents(cls.name)
     grid = np.arange(int(round(HOLD_END * aff.fs)) + 1) / aff.fs
     static, dynamic = site_inputs(np.interp(grid, t, s), aff.fs, cls.saal.input_scale,
