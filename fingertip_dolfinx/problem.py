@@ -447,7 +447,8 @@ class FingertipProblem(SteppableState):
             order = np.argsort(x[:, 0])
             xs, ys = x[order, 0], x[order, 1]
             for o in self.obstacles:
-                for cx in o.indenter.tip_xs():  # a gap's middle is no tip: skin rises there
+                shift = 0.0 if o.x_tip is None else float(o.x_tip.value)  # moved along x
+                for cx in (x0 + shift for x0 in o.indenter.tip_xs()):  # no tip in a gap
                     if xs[0] <= cx <= xs[-1]:
                         depth = max(depth, float(o.y_tip.value - np.interp(cx, xs, ys)))
         depth = max(self.mesh.comm.bcast(depth, root=0), 0.0)
