@@ -349,3 +349,21 @@ def test_the_tip_check_follows_an_indenter_moved_along_x():
         problem.set_time(1.0)  # moved 3 mm: clear
         assert problem.contact.max_penetration() == 0.0
         assert problem.tip_penetration() == 0.0
+
+
+def test_pictures_draw_an_indenter_moved_along_x_where_it_is():
+    """The field pictures drew a slid bar at its starting x, beside the dent it makes."""
+    from types import SimpleNamespace
+
+    from fingertip_dolfinx.geometry.indenters import Bar
+    from fingertip_dolfinx.plotting.pictures import placed_indenters
+
+    bar = Bar(width=1.0, centre_x=-1.0)
+    moved = SimpleNamespace(indenter=bar, y_tip=SimpleNamespace(value=-6.5),
+                            x_tip=SimpleNamespace(value=1.5))
+    still = SimpleNamespace(indenter=bar, y_tip=SimpleNamespace(value=-6.5), x_tip=None)
+    (shape, y), (same, _) = placed_indenters([moved, still])
+    assert shape.centre_x == pytest.approx(0.5) and y == -6.5 and same is bar
+    # the drawn shape is the moved one: its tip at x = 0.5 touches y_tip
+    phi = shape.signed_distance_np(np.array([[0.5, -6.5], [-1.0, -6.5]]), -6.5)[0]
+    assert phi[0] == pytest.approx(0.0, abs=1e-12) and phi[1] > 1.0
