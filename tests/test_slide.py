@@ -99,3 +99,20 @@ def test_the_slide_writes_receptor_histories_and_spikes(slid):
     assert len(result.afferents["afferent"]) > 0 and "time_s" in result.spikes
     assert (result.out / "friction.png").exists() and (result.out / "population.png").exists()
 
+
+
+def test_the_slide_scene_presses_then_slides_at_its_stated_speed():
+    import fingertip_dolfinx as ft
+
+    scene = ft.load_scene("slide")
+    (bar,) = scene.indenters
+    assert bar.shape == "bar" and bar.width == 1.0 and bar.friction == MU
+    path = scene.history
+    press_end = path.normal.ramp_time
+    assert path(press_end) == 0.5 and path.tangential_at(press_end) == 0.0
+    speed = (path.tangential_at(path.end_time) - path.tangential_at(press_end)) / (
+        path.end_time - press_end)
+    assert speed == pytest.approx(80.0)  # mm/s, the scene's stated scanning speed
+    assert path.tangential_at(path.end_time) == pytest.approx(2.0)
+    assert scene.outputs.receptors == "calibrated"
+    assert any("check passed" in line for line in ft.check("slide"))
