@@ -416,11 +416,23 @@ class FingertipProblem(SteppableState):
 
     def _friction_diagnostics(self) -> dict[str, float]:
         """With friction: the indenters' y-force with the friction's share (what balances the
-        support), the tangential force along x and the indenters' tangential displacement."""
+        support), the tangential force along x and the indenters' tangential displacement; the
+        pressure's share of both (`pressure_tangential_...`, `pressure_normal_...`; the rest
+        is the friction traction's) and the energy the friction dissipated over the step
+        (`dissipated_N_mm_per_mm`, 3D `dissipated_N_mm`; measured before the step is accepted)."""
         fx, fy = self.friction.forces().sum(axis=0)[:2]
+        px, py = self.friction.pressure_forces().sum(axis=0)[:2]
         force = self.force_keys[0]
         return {force: float(fy), f"tangential_{force}": float(fx),
-                "tangential_displacement_mm": self.tangential_displacement(self.time)}
+                "tangential_displacement_mm": self.tangential_displacement(self.time),
+                f"pressure_tangential_{force}": float(px), f"pressure_normal_{force}": float(py),
+                self.dissipated_key: self.friction.dissipated()}
+
+    @property
+    def dissipated_key(self) -> str:
+        """The diagnostics' name of the friction's dissipated energy over a step: per unit
+        length in plane strain (N mm/mm), N mm in 3D."""
+        return "dissipated_N_mm" if self.gdim == 3 else "dissipated_N_mm_per_mm"
 
     # --- penetration ----------------------------------------------------------------------------
     def max_penetration(self) -> float:
@@ -447,7 +459,8 @@ class FingertipProblem(SteppableState):
             order = np.argsort(x[:, 0])
             xs, ys = x[order, 0], x[order, 1]
             for o in self.obstacles:
-                for cx in o.indenter.tip_xs():  # a gap's middle is no tip: skin rises there
+                shift = 0.0 if o.x_tip is None else float(o.x_tip.value)  # moved along x
+                for cx in (x0 + shift for x0 in o.indenter.tip_xs()):  # no tip in a gap
                     if xs[0] <= cx <= xs[-1]:
                         depth = max(depth, float(o.y_tip.value - np.interp(cx, xs, ys)))
         depth = max(self.mesh.comm.bcast(depth, root=0), 0.0)

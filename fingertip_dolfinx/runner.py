@@ -351,11 +351,14 @@ class Run:
 
     @property
     def _friction_columns(self) -> tuple[str, ...]:
-        """history.csv's tangential force and displacement, with friction only (a frictionless
-        run's file stays as it was)."""
+        """history.csv's tangential force and displacement, the pressure's share of the
+        tangential force (ploughing) and the friction's dissipated energy over the step, with
+        friction only (a frictionless run's file stays as it was)."""
         if self.problem.friction is None:
             return ()
-        return (f"tangential_{self.problem.force_keys[0]}", "tangential_displacement_mm")
+        force = self.problem.force_keys[0]
+        return (f"tangential_{force}", "tangential_displacement_mm",
+                f"pressure_tangential_{force}", self.problem.dissipated_key)
 
     def on_step(self, report) -> None:
         """Write what the accepted step produced (its state is the converged one)."""

@@ -319,3 +319,51 @@ def test_stick_slip_surfaces_are_the_same_on_two_ranks_as_on_one(world_and_alone
         np.testing.assert_array_equal(a["contact_state"], b["contact_state"])
         scale = np.max(b["pressure_MPa"])  # the sums' order differs: rounding only
         np.testing.assert_allclose(a["pressure_MPa"], b["pressure_MPa"], atol=1e-8 * scale)
+
+
+def test_the_tip_check_follows_an_indenter_moved_along_x():
+    """u = 0, the round bar pressed 0.05 mm past first touch at x = 0, then moved 3 mm along x:
+    there the undeformed pulp lies ~0.5 mm lower (the section's radius ~9 mm: 3²/18), so the
+    tip is clear of the body. The check read the surface at the bar's starting x and reported
+    the 0.05 mm it had there as penetration (the slide scene's history said 0.2 mm)."""
+    import dataclasses
+    import warnings
+
+    from fingertip_dolfinx.geometry.indenters import load_indenter
+    from fingertip_dolfinx.geometry.mesh import build_mesh
+    from fingertip_dolfinx.geometry.section import load_section
+    from fingertip_dolfinx.physics.contact import TipResolutionWarning
+    from fingertip_dolfinx.problem import FingertipProblem
+
+    section = load_section("male-index")
+    section = dataclasses.replace(section, mesh=dataclasses.replace(
+        section.mesh, min_size=0.25, max_size=1.5, bone_size=2.0, refine_half_width=4.0))
+    path = TangentialPath(RampHold(depth=0.05, ramp_time=0.5, end_time=1.0),
+                          PiecewiseLinear((0.0, 0.5, 1.0), (0.0, 0.0, 3.0)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", TipResolutionWarning)
+        problem = FingertipProblem(build_mesh(section, MPI.COMM_WORLD), [load_indenter("bar")],
+                                   path, friction=0.5)
+        problem.set_time(0.5)  # pressed, not moved: the tip 0.05 mm in
+        assert problem.tip_penetration() == pytest.approx(0.05, abs=1e-9)
+        problem.set_time(1.0)  # moved 3 mm: clear
+        assert problem.contact.max_penetration() == 0.0
+        assert problem.tip_penetration() == 0.0
+
+
+def test_pictures_draw_an_indenter_moved_along_x_where_it_is():
+    """The field pictures drew a slid bar at its starting x, beside the dent it makes."""
+    from types import SimpleNamespace
+
+    from fingertip_dolfinx.geometry.indenters import Bar
+    from fingertip_dolfinx.plotting.pictures import placed_indenters
+
+    bar = Bar(width=1.0, centre_x=-1.0)
+    moved = SimpleNamespace(indenter=bar, y_tip=SimpleNamespace(value=-6.5),
+                            x_tip=SimpleNamespace(value=1.5))
+    still = SimpleNamespace(indenter=bar, y_tip=SimpleNamespace(value=-6.5), x_tip=None)
+    (shape, y), (same, _) = placed_indenters([moved, still])
+    assert shape.centre_x == pytest.approx(0.5) and y == -6.5 and same is bar
+    # the drawn shape is the moved one: its tip at x = 0.5 touches y_tip
+    phi = shape.signed_distance_np(np.array([[0.5, -6.5], [-1.0, -6.5]]), -6.5)[0]
+    assert phi[0] == pytest.approx(0.0, abs=1e-12) and phi[1] > 1.0

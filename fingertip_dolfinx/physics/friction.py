@@ -190,8 +190,30 @@ class CoulombFriction:
     def forces(self) -> np.ndarray:
         """(indenters, gdim): the force each indenter exerts on the body, pressure and
         friction (N/mm in plane strain, N in 3D); column 0 is the tangential force along x."""
+        return self._assemble(self._force_forms)
+
+    @cached_property
+    def _pressure_forms(self) -> list[list[fem.Form]]:
+        V = self.contact.u.function_space
+        bs = V.dofmap.index_map_bs
+        forms = []
+        for k in range(bs):
+            e_k = fem.Function(V)
+            e_k.x.array.reshape(-1, bs)[:, k] = 1.0
+            forms.append([fem.form(-self.contact._term(i, e_k)) for i in range(len(self.mu))])
+        return forms
+
+    def pressure_forces(self) -> np.ndarray:
+        """(indenters, gdim): the pressure's share of `forces()`, ∫ p n ds; the rest is the
+        friction's, ∫ f ds. On a curved or tilted contact the pressure has a share along x
+        (ploughing: the skin heaped ahead of a sliding indenter pushes it back), so in gross
+        slip it is the friction's share that is μ times the pressure's normal force, not the
+        total tangential force μ times the total normal force."""
+        return self._assemble(self._pressure_forms)
+
+    def _assemble(self, forms) -> np.ndarray:
         comm = self.contact.u.function_space.mesh.comm
-        local = np.array([[fem.assemble_scalar(f) for f in row] for row in self._force_forms])
+        local = np.array([[fem.assemble_scalar(f) for f in row] for row in forms])
         return comm.allreduce(local.T.copy(), op=MPI.SUM)
 
 

@@ -8,6 +8,7 @@ the pore pressure. Every rank calls; rank 0 draws.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 from .fieldplots import plot_field
@@ -28,7 +29,7 @@ FIELDS = {
 
 def field_pictures(problem, derived, out: Path, t: float, title: str) -> None:
     """field_<name>_t<t>s.png in `out` for every field the model has (derived: updated)."""
-    tips = [(o.indenter, float(o.y_tip.value)) for o in problem.obstacles]
+    tips = placed_indenters(problem.obstacles)
     for name, (label, get, saturate) in FIELDS.items():
         if name == "p" and problem.p is None:
             continue
@@ -37,3 +38,16 @@ def field_pictures(problem, derived, out: Path, t: float, title: str) -> None:
                    Path(out) / f"field_{name}_t{t:g}s.png", label=label,
                    title=f"{title}: {name} at t = {t:g} s", indenters=tips,
                    field_mesh_nodes=nodes, saturate=saturate)
+
+
+def placed_indenters(obstacles) -> list[tuple]:
+    """(indenter, y_tip) of each obstacle where it is now: moved along x by its x_tip (a
+    tangential path), else at its own centre_x."""
+    placed = []
+    for o in obstacles:
+        indenter = o.indenter
+        if o.x_tip is not None and float(o.x_tip.value) != 0.0:
+            indenter = dataclasses.replace(
+                indenter, centre_x=indenter.centre_x + float(o.x_tip.value))
+        placed.append((indenter, float(o.y_tip.value)))
+    return placed
