@@ -319,3 +319,41 @@ def test_stick_slip_surfaces_are_the_same_on_two_ranks_as_on_one(world_and_alone
         np.testing.assert_array_equal(a["contact_state"], b["contact_state"])
         scale = np.max(b["pressure_MPa"])  # the sums' order differs: rounding only
         np.testing.assert_allclose(a["pressure_MPa"], b["pressure_MPa"], atol=1e-8 * scale)
+
+
+def press_then_drag(options):
+    """The coarse shear scene's press (5 steps of 0.1 s to 0.5 mm) and its first drag step
+    (0.1 mm in 0.1 s), with the step options `options`; the reports."""
+    from fingertip_dolfinx.geometry.mesh import build_mesh
+    from fingertip_dolfinx.problem import FingertipProblem
+    from fingertip_dolfinx.scene import load_scene
+    from fingertip_dolfinx.stepping import TimeStepper
+
+    scene = load_scene("shear")
+    problem = FingertipProblem(build_mesh(scene.section, MPI.COMM_WORLD), scene.indenters,
+                               scene.history, friction=[i.friction for i in scene.indenters])
+    stepper = TimeStepper(problem, options, scene.petsc_options, prefix="drag_start_")
+    try:
+        return stepper.run(scene.history, 0.6)
+    finally:
+        stepper.close()
+
+
+@pytest.mark.slow
+def test_the_tangent_predictor_takes_the_first_drag_step_whole():
+    # From the pressed state with the plate moved 0.1 mm, Newton's first linearisation puts
+    # every contact point on the slip branch (the trial traction γ_τ Δx is far outside the
+    # cone) and the plain start fails; the tangent predictor, linearised at the accepted
+    # (sticking) state, moves the skin with the plate and the step converges uncut.
+    from fingertip_dolfinx.errors import FingertipError
+    from fingertip_dolfinx.stepping import StepOptions
+
+    steps = dict(dt_initial=0.1, dt_max=0.1, max_cuts=1)  # the press's last step cuts once
+    with pytest.raises(FingertipError, match="from t = 0.5 s"):
+        press_then_drag(StepOptions(**steps))
+    reports = press_then_drag(StepOptions(**steps, tangent_start=True))
+    first = next(r for r in reports if r.time > 0.5 + 1e-9)  # the step the controller planned
+    assert first.cuts == 0 and first.dt >= 0.05
+    d = first.diagnostics
+    ratio = abs(d["tangential_force_N_per_mm"]) / (0.5 * abs(d["force_N_per_mm"]))
+    assert 0.05 < ratio < 0.9  # sticking at the centre: 0.075 mm of drag carries ~0.09 μFn
