@@ -67,7 +67,7 @@ class StepOptions:
     #: the 1 mm ramp; a quadratic extrapolation through three states overshoots the growing
     #: contact zone: 41 steps, 209 iterations against the linear one's 33 and 164.
     extrapolate: bool = True
-    #: Start the first step, and the first after a kink of the load, from the tangent predictor
+    #: Start the first step after a kink of the load from the tangent predictor
     #: (stepper.TangentPredictor: the accepted state's linearisation, its contact and stick
     #: sets), and extrapolate across output times, which are no kinks. Off: those steps start
     #: from the accepted state, also after an output time. With friction, a plate that starts

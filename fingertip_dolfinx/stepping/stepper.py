@@ -321,7 +321,7 @@ class TimeStepper:
         elif opts.extrapolate and len(line.states) == 2 and not _is_mark(
                 step.t, line.marks if self.tangent is None else line.kinks):
             _extrapolate(problem.unknowns, line.states, step.t_new)
-        elif self.tangent is not None:  # its linear solve counts as an iteration
+        elif self.tangent is not None and len(line.states) == 2:  # its solve: an iteration
             self.tangent.predict(problem, step.t, step.t_new)
             predicted = 1
         step.reason, step.iterations = self.solve_once()
