@@ -32,6 +32,11 @@ Step sizes (`StepOptions.control`; the policies are controllers.py's objects):
   kept). A step whose error exceeds the tolerance (err > 1) is redone; the next step is
   Δt·min(growth, max(0.2, safety·err^(−1/(k+1)))), k the order.
 
+Under "iterations" a step starts from the linear extrapolation of the last two accepted states,
+but not across a breakpoint or an output time; with `tangent_start` the first step after a kink
+starts from the tangent predictor (`TangentPredictor`: the accepted state's linearisation, with
+friction the sticking skin moved with the indenter) and output times are extrapolated across.
+
 In both, steps land exactly on every breakpoint of the load and output time, and a step is cut
 when it fails (divergence, NaN, inverted elements); after `max_cuts` cuts in a row the run
 stops with a message that says when, where and why (diagnosis.py). Compaction of a porous
@@ -322,6 +327,8 @@ class TimeStepper:
                 step.t, line.marks if self.tangent is None else line.kinks):
             _extrapolate(problem.unknowns, line.states, step.t_new)
         elif self.tangent is not None and len(line.states) == 2:  # its solve: an iteration
+            if self.reuse is not None:
+                self.reuse.start()  # a fresh Jacobian: the accepted state's, not a kept one
             self.tangent.predict(problem, step.t, step.t_new)
             predicted = 1
         step.reason, step.iterations = self.solve_once()
@@ -584,6 +591,8 @@ class TangentPredictor:
         x.axpy(-1.0, self.dx)
         x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
         dolfinx.fem.petsc.assign(x, problem.unknowns)
+        for f in problem.unknowns:
+            f.x.scatter_forward()
 
 
 @dataclass
