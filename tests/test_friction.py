@@ -198,6 +198,14 @@ def test_friction_is_indenter_data_and_the_shear_scene_drags_a_plate():
     assert "friction" not in scene_record(load_scene("1pt"))["indenters"][0]
 
 
+def test_the_step_record_names_tangent_start_only_where_it_is_on():
+    from fingertip_dolfinx.scene import load_scene, scene_record
+
+    assert scene_record(load_scene("shear"))["steps"]["tangent_start"] is True
+    # a scene without it has the record it had before the option: its runs still resume
+    assert "tangent_start" not in scene_record(load_scene("1pt"))["steps"]
+
+
 def test_a_resume_with_another_tangential_path_is_refused(tmp_path):
     from fingertip_dolfinx.outputs import check_resume
     from fingertip_dolfinx.scene import load_scene, scene_record
