@@ -727,11 +727,20 @@ def scene_record(scene: Scene) -> dict:
         "materials": scene.materials.record(),
         "protocol": _protocol_record(scene.history),
         "model": dataclasses.asdict(scene.model),
-        "steps": dataclasses.asdict(scene.steps),
+        "steps": _steps_record(scene.steps),
         "solver": {"linear": scene.linear, **scene.petsc_options},
         "output": dataclasses.asdict(scene.outputs),
         "accuracy": dataclasses.asdict(scene.accuracy),
     } | ({} if scene.harmonic is None else {"harmonic": dataclasses.asdict(scene.harmonic)}))
+
+
+def _steps_record(steps) -> dict:
+    """The `[steps]` table; `tangent_start` only where it is on (a scene without it has the
+    record it had before the option existed: its runs still resume)."""
+    table = dataclasses.asdict(steps)
+    if not table["tangent_start"]:
+        del table["tangent_start"]
+    return table
 
 
 def _indenter_record(indenter: Indenter) -> dict:

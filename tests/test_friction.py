@@ -198,6 +198,14 @@ def test_friction_is_indenter_data_and_the_shear_scene_drags_a_plate():
     assert "friction" not in scene_record(load_scene("1pt"))["indenters"][0]
 
 
+def test_the_step_record_names_tangent_start_only_where_it_is_on():
+    from fingertip_dolfinx.scene import load_scene, scene_record
+
+    assert scene_record(load_scene("shear"))["steps"]["tangent_start"] is True
+    # a scene without it has the record it had before the option: its runs still resume
+    assert "tangent_start" not in scene_record(load_scene("1pt"))["steps"]
+
+
 def test_a_resume_with_another_tangential_path_is_refused(tmp_path):
     from fingertip_dolfinx.outputs import check_resume
     from fingertip_dolfinx.scene import load_scene, scene_record
@@ -367,3 +375,91 @@ def test_pictures_draw_an_indenter_moved_along_x_where_it_is():
     # the drawn shape is the moved one: its tip at x = 0.5 touches y_tip
     phi = shape.signed_distance_np(np.array([[0.5, -6.5], [-1.0, -6.5]]), -6.5)[0]
     assert phi[0] == pytest.approx(0.0, abs=1e-12) and phi[1] > 1.0
+
+
+def press_then_drag(options):
+    """The coarse shear scene's press (5 steps of 0.1 s to 0.5 mm) and its first drag step
+    (0.1 mm in 0.1 s), with the step options `options`; the reports."""
+    from fingertip_dolfinx.geometry.mesh import build_mesh
+    from fingertip_dolfinx.problem import FingertipProblem
+    from fingertip_dolfinx.scene import load_scene
+    from fingertip_dolfinx.stepping import TimeStepper
+
+    scene = load_scene("shear")
+    problem = FingertipProblem(build_mesh(scene.section, MPI.COMM_WORLD), scene.indenters,
+                               scene.history, friction=[i.friction for i in scene.indenters])
+    stepper = TimeStepper(problem, options, scene.petsc_options, prefix="drag_start_")
+    try:
+        return stepper.run(scene.history, 0.6)
+    finally:
+        stepper.close()
+
+
+@pytest.mark.slow
+def test_the_tangent_predictor_takes_the_first_drag_step_whole():
+    # From the pressed state with the plate moved 0.1 mm, Newton's first linearisation puts
+    # every contact point on the slip branch (the trial traction γ_τ Δx is far outside the
+    # cone) and the plain start fails; the tangent predictor, linearised at the accepted
+    # (sticking) state, moves the skin with the plate and the step converges uncut.
+    from fingertip_dolfinx.errors import FingertipError
+    from fingertip_dolfinx.stepping import StepOptions
+
+    steps = dict(dt_initial=0.1, dt_max=0.1, max_cuts=1)  # the press's last step cuts once
+    with pytest.raises(FingertipError, match="from t = 0.5 s"):
+        press_then_drag(StepOptions(**steps))
+    reports = press_then_drag(StepOptions(**steps, tangent_start=True))
+    first = next(r for r in reports if r.time > 0.5 + 1e-9)  # the step the controller planned
+    assert first.cuts == 0 and first.dt >= 0.05
+    d = first.diagnostics
+    ratio = abs(d["tangential_force_N_per_mm"]) / (0.5 * abs(d["force_N_per_mm"]))
+    assert 0.05 < ratio < 0.9  # sticking at the centre: 0.075 mm of drag carries ~0.09 μFn
+
+
+@pytest.mark.slow
+def test_the_jacobian_is_the_residuals_derivative_in_partial_stick():
+    """The shear scene dragged 0.2 mm (partial stick), then its next step's tangent predictor
+    (contact points sticking and slipping): the assembled Jacobian times the Newton direction
+    d equals the central difference of the residual along d to round-off, as the contact's
+    does (test_line_load.py). The tangent is UFL's derivative of the residual; this guards
+    the conditionals and clippings of Coulomb's projection, where a derivative taken on the
+    wrong branch would leave an error that does not fall with ε."""
+    import dolfinx.fem.petsc
+
+    from fingertip_dolfinx.geometry.mesh import build_mesh
+    from fingertip_dolfinx.problem import FingertipProblem
+    from fingertip_dolfinx.scene import load_scene
+    from fingertip_dolfinx.stepping import TimeStepper
+
+    scene = load_scene("shear")
+    problem = FingertipProblem(build_mesh(scene.section, MPI.COMM_WORLD), scene.indenters,
+                               scene.history, friction=[i.friction for i in scene.indenters])
+    stepper = TimeStepper(problem, scene.steps, scene.petsc_options, prefix="fd_friction_")
+    stepper.run(scene.history, 0.7)
+    problem.dt.value = 0.05
+    problem.set_time(0.75)
+    stepper.tangent.predict(problem, 0.7, 0.75)
+    snes, x = stepper.snes, stepper.nonlinear.x
+    dolfinx.fem.petsc.assign(problem.unknowns, x)
+    (F, _), (J, P, _) = snes.getFunction(), snes.getJacobian()
+    snes.computeFunction(x, F)
+    snes.computeJacobian(x, J, P)
+    ksp, d, Jd = snes.getKSP(), x.duplicate(), x.duplicate()
+    ksp.setOperators(J, P)
+    ksp.solve(F, d)
+    J.mult(d, Jd)
+
+    def error(eps):
+        plus, minus, fp, fm = x.copy(), x.copy(), x.duplicate(), x.duplicate()
+        plus.axpy(eps, d)
+        minus.axpy(-eps, d)
+        snes.computeFunction(plus, fp)
+        snes.computeFunction(minus, fm)
+        fp.axpy(-1.0, fm)
+        fp.scale(0.5 / eps)
+        fp.axpy(-1.0, Jd)
+        return fp.norm() / Jd.norm()
+
+    try:
+        assert error(1e-2) < 1e-6  # measured 1.5e-8 at 0.8 s; round-off grows below ε = 1e-2
+    finally:
+        stepper.close()

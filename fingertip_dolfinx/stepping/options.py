@@ -67,6 +67,12 @@ class StepOptions:
     #: the 1 mm ramp; a quadratic extrapolation through three states overshoots the growing
     #: contact zone: 41 steps, 209 iterations against the linear one's 33 and 164.
     extrapolate: bool = True
+    #: Start the first step after a kink of the load from the tangent predictor
+    #: (stepper.TangentPredictor: the accepted state's linearisation, its contact and stick
+    #: sets), and extrapolate across output times, which are no kinks. Off: those steps start
+    #: from the accepted state, also after an output time. With friction, a plate that starts
+    #: to move along the skin from rest: the shear scene's plain start failed 6 times there.
+    tangent_start: bool = False
     #: Keep the Jacobian, and so its LU factorisation, for the next Newton iteration of a step
     #: when the last one cut the residual norm by at least this factor (0: never keep it; a
     #: chord step is then nearly as good as Newton's: the iterate is in the quadratic phase).

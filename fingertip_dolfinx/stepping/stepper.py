@@ -32,6 +32,11 @@ Step sizes (`StepOptions.control`; the policies are controllers.py's objects):
   kept). A step whose error exceeds the tolerance (err > 1) is redone; the next step is
   Δt·min(growth, max(0.2, safety·err^(−1/(k+1)))), k the order.
 
+Under "iterations" a step starts from the linear extrapolation of the last two accepted states,
+but not across a breakpoint or an output time; with `tangent_start` the first step after a kink
+starts from the tangent predictor (`TangentPredictor`: the accepted state's linearisation, with
+friction the sticking skin moved with the indenter) and output times are extrapolated across.
+
 In both, steps land exactly on every breakpoint of the load and output time, and a step is cut
 when it fails (divergence, NaN, inverted elements); after `max_cuts` cuts in a row the run
 stops with a message that says when, where and why (diagnosis.py). Compaction of a porous
@@ -176,6 +181,9 @@ class TimeStepper:
         #: Jacobian (and factorisation) reuse within a step (StepOptions.jacobian_reuse).
         reuse = self.options.jacobian_reuse
         self.reuse = JacobianReuse(self.snes, reuse) if reuse > 0 else None
+        #: The predictor where no extrapolation starts a step (StepOptions.tangent_start).
+        self.tangent = TangentPredictor(self.snes, self.nonlinear) \
+            if self.options.tangent_start else None
 
     def _set_dynamics(self) -> None:
         """Give a problem with inertia the scheme's ρ∞; refuse a quasi-static scheme for it."""
@@ -306,7 +314,7 @@ class TimeStepper:
 
     def _attempt(self, line: _Timeline, step: _Step) -> None:
         """Move the loads to the attempt's end, predict the unknowns there and solve."""
-        problem, opts = self.problem, self.options
+        problem, opts, predicted = self.problem, self.options, 0
         step.t_new = line.lands(step.t, step.dt)
         step.t_first = step.t_new if step.t_first is None else step.t_first
         problem.dt.value = step.t_new - step.t
@@ -315,9 +323,16 @@ class TimeStepper:
         if self._control.estimates_error:
             if opts.extrapolate and step.plan.predictor is not None:
                 _assign(problem.unknowns, step.plan.predictor)
-        elif opts.extrapolate and len(line.states) == 2 and not _is_mark(step.t, line.marks):
+        elif opts.extrapolate and len(line.states) == 2 and not _is_mark(
+                step.t, line.marks if self.tangent is None else line.kinks):
             _extrapolate(problem.unknowns, line.states, step.t_new)
+        elif self.tangent is not None and len(line.states) == 2:  # its solve: an iteration
+            if self.reuse is not None:
+                self.reuse.start()  # a fresh Jacobian: the accepted state's, not a kept one
+            self.tangent.predict(problem, step.t, step.t_new)
+            predicted = 1
         step.reason, step.iterations = self.solve_once()
+        step.iterations += predicted
         step.why = (problem.inadmissible() or "").rstrip(".") if step.reason > 0 else ""
 
     def _estimate(self, line: _Timeline, step: _Step) -> float:
@@ -532,6 +547,52 @@ class JacobianReuse:
     def start(self) -> None:
         """A new solve (a step, or its retry) starts from a fresh Jacobian."""
         self._valid, self._norm = False, None
+
+
+class TangentPredictor:
+    """The tangent (Euler) predictor: u_n − J_n⁻¹ [R(u_n; t) + ∂R/∂t (t_new − t)], the first
+    Newton iterate of a step linearised at the accepted state u_n under its own loads (J_n,
+    and ∂R/∂t by a difference over a sliver `EPS` × Δt of the load path).
+
+    Started from u_n with the loads moved to t_new, Newton linearises where the loads jumped:
+    a plate moved along the skin by Δx makes the friction's trial traction γ_τ Δx, far outside
+    Coulomb's cone, so every contact point enters the first iteration on the slip branch with
+    its traction clipped to μp: the residual no longer tells how far the skin must follow the
+    plate, and Newton moves it by ~(μp − |f|)/γ_τ per iteration. Taken at the accepted state,
+    where the sliver of the load path keeps every point on its branch (stick stays stick,
+    contact stays contact), the linearisation moves the sticking skin with the plate.
+    """
+
+    #: The sliver of the step over which ∂R/∂t is differenced: small enough that no point
+    #: leaves its branch, large enough that the difference is far above round-off.
+    EPS = 1e-6
+
+    def __init__(self, snes: PETSc.SNES, nonlinear):
+        self.snes, self.x = snes, nonlinear.x
+        self.r0, self.r1, self.dx = (self.x.duplicate() for _ in range(3))
+
+    def predict(self, problem, t: float, t_new: float) -> None:
+        """Set the unknowns to the tangent predictor of the step t → t_new (the loads end at
+        t_new, the problem's dt is the step's)."""
+        snes, x = self.snes, self.x
+        dolfinx.fem.petsc.assign(problem.unknowns, x)
+        sliver = self.EPS * (t_new - t)
+        J, P, _ = snes.getJacobian()
+        problem.set_time(t)
+        snes.computeFunction(x, self.r0)
+        snes.computeJacobian(x, J, P)
+        problem.set_time(t + sliver)
+        snes.computeFunction(x, self.r1)
+        problem.set_time(t_new)
+        self.r1.axpby(1.0 - 1.0 / self.EPS, 1.0 / self.EPS, self.r0)  # r0 + (r1 − r0)/EPS
+        ksp = snes.getKSP()
+        ksp.setOperators(J, P)
+        ksp.solve(self.r1, self.dx)
+        x.axpy(-1.0, self.dx)
+        x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+        dolfinx.fem.petsc.assign(x, problem.unknowns)
+        for f in problem.unknowns:
+            f.x.scatter_forward()
 
 
 @dataclass
