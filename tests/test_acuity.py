@@ -188,3 +188,32 @@ def test_a_grating_record_keeps_a_finite_depth_and_leaves_out_inf():
     assert "depth" not in scene_record(load_scene("grating"))["indenters"][0]
     floored = load_scene("grating", ["indenters.0.depth=0.5"])
     assert scene_record(floored)["indenters"][0]["depth"] == 0.5
+
+
+def test_the_3d_files_hold_each_sites_position_and_every_populations_dprime(tmp_path):
+    """acuity.csv has one d′ column per population, counts.csv each site's x and z with its
+    expected count, acuity.md the criterion and table, and the figure is drawn (synthetic
+    counts: ridges along the finger fire in bands of x, across it in bands of z)."""
+    from fingertip_dolfinx.studies.acuity import (
+        _write_tables_3d,
+        plot_acuity_3d,
+        summarise_3d,
+    )
+
+    rng = np.random.default_rng(6)
+    xz = np.column_stack((rng.uniform(-3, 3, 40), rng.uniform(6, 12, 40)))
+    bands = {"orientation-w1-along": xz[:, 0], "orientation-w1-across": xz[:, 1] - 9.0,
+             "gap-g0": 0 * xz[:, 0], "gap-g1": np.abs(xz[:, 0]) + 1.0}
+    counts = {k: (xz, 3.0 * (np.cos(np.pi * u) > 0)) for k, u in bands.items()}
+    result = summarise_3d(counts, (1.0,), (1.0,), (3.0, 6.0, 12.0))
+    _write_tables_3d(tmp_path, counts, result)
+    plot_acuity_3d(result, counts, tmp_path / "acuity.png")
+    lines = (tmp_path / "acuity.csv").read_text().splitlines()
+    assert lines[0] == "task,width_mm,dprime,dprime_pop0,dprime_pop1,dprime_pop2,dprime_pop3"
+    rows = (tmp_path / "counts.csv").read_text().splitlines()
+    assert rows[0] == "run,x_mm,z_mm,expected_count" and len(rows) == 1 + 4 * 40
+    label, x, z, mu = rows[1].split(",")
+    assert label == "orientation-w1-along" and float(x) == pytest.approx(xz[0, 0], abs=1e-6)
+    assert float(z) == pytest.approx(xz[0, 1], abs=1e-6)
+    assert "ridges along vs across" in (tmp_path / "acuity.md").read_text()
+    assert (tmp_path / "acuity.png").stat().st_size > 10_000

@@ -557,6 +557,8 @@ def _dprime_panel(ax, result: dict) -> None:
         ax.axvline(t["measured_mm"], color=colour, ls=":",
                    label=f"{name}: measured {t['measured_mm']:g} mm")
     ax.axhline(LEVEL, color="k", lw=0.8, ls="--", label=f"d′ = {LEVEL:g}")
+    sizes = [v for name in ("orientation", "gap") for v in result[name]["widths_mm"]]
     ax.set(xlabel="ridge width or gap (mm)", ylabel="d′ of the window's SA1 (dots: populations)",
-           title="3D: SA1 ideal observer, Poisson counts")
-    ax.legend(fontsize=7)
+           title="3D: SA1 ideal observer, Poisson counts", xlim=(0, 1.3 * max(sizes + [1.0])))
+    ax.title.set_fontsize(9)
+    ax.legend(fontsize=7, loc="upper left")
