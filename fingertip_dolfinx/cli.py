@@ -177,7 +177,11 @@ def _add_study(subparsers) -> None:
                    help="acuity: ridge (= groove) widths of the gratings in mm (default "
                    "0.5 0.75 1 1.5 2)")
     p.add_argument("--gaps", type=float, nargs="+", metavar="G", default=None,
-                   help="acuity: gaps in the 4 mm bar in mm (default 0.5 1 1.5 2)")
+                   help="acuity: gaps in the 4 mm bar in mm (default 0.5 1 1.5 2; --3d: 1)")
+    p.add_argument("--3d", dest="three_d", action="store_true",
+                   help="acuity: on the 3D fingertip (scene grating-3d): the grating along "
+                   "vs across the finger and the gap, one run at a time per rank group, "
+                   "finished runs in --out reused (default width 1, gap 1)")
     _add_scene_options(p)
     p.set_defaults(handler=_run_study)
 
@@ -225,6 +229,14 @@ def _run_acuity(args) -> int:
     """`fingertip study acuity`: the table printed, the files in --out."""
     from .studies import acuity
 
+    if args.three_d:
+        result = acuity.run_acuity_3d(args.out, args.widths or acuity.WIDTHS_3D,
+                                      args.gaps or acuity.GAPS_3D, _scene_overrides(args),
+                                      progress=not args.quiet)
+        _rank0_print(f"Criterion: {result['criterion']}.\n")
+        _rank0_print(acuity.acuity_table_3d(result))
+        _rank0_print(f"acuity table written to {args.out}/acuity.md")
+        return 0
     coarse = [] if args.full else list(acuity.COARSE)
     result = acuity.run_acuity(args.out, args.widths or acuity.WIDTHS, args.gaps or acuity.GAPS,
                                coarse + _scene_overrides(args), progress=not args.quiet)

@@ -13,6 +13,7 @@ against the scene file's folder.
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
 import tomllib
 from collections.abc import Mapping, Sequence
@@ -744,11 +745,14 @@ def _steps_record(steps) -> dict:
 
 
 def _indenter_record(indenter: Indenter) -> dict:
-    """An indenter's table; `friction` only where it is not 0 (a frictionless scene's record
-    is the one it had before indenters had friction: its runs still resume)."""
+    """An indenter's table; `friction` only where it is not 0 and a grating's `depth` only
+    where it is finite (the record is the one it had before these keys: its runs still
+    resume, and JSON gets no infinity)."""
     table = {"shape": indenter.shape, **dataclasses.asdict(indenter)}
     if table["friction"] == 0:
         del table["friction"]
+    if table.get("depth") == math.inf:
+        del table["depth"]
     return table
 
 

@@ -124,3 +124,96 @@ def test_coarser_gratings_and_wider_gaps_are_told_apart_better(tmp_path):
     assert grating["dprime"][1] > grating["dprime"][0]
     assert all(b > a for a, b in zip(*grating["dprime_rows"]))
     assert result["gap"]["dprime"][0] > 0
+
+
+# ---- 3D: oriented gratings and the gap on the 3D fingertip (helpers; the runs are a study) --
+
+
+def test_the_oriented_gratings_are_one_grating_turned_and_span_the_contact():
+    """Along ("z") and across ("x") are the same profile: φ_along(x, y, z) = φ_across(x', y,
+    centre + x) for any x'; a ridge is centred at x = 0 (along) or z = centre (across), and
+    the ridges cover the contact's ±12 mm around it."""
+    from fingertip_dolfinx.studies.acuity import GRATING_SPAN_3D, oriented_table
+
+    along, across = (shape(oriented_table(1.0, o, 9.0)) for o in ("along", "across"))
+    assert (along.axis, across.axis) == ("z", "x") and along.ridges == across.ridges
+    assert (along.ridges - 1) * along.period >= GRATING_SPAN_3D
+    rng = np.random.default_rng(4)
+    p = np.column_stack((rng.uniform(-12, 12, 400), rng.uniform(-1, 0.5, 400),
+                         rng.uniform(-3, 21, 400)))
+    turned = np.column_stack((p[:, 2] * 0 + 5.0, p[:, 1], 9.0 + p[:, 0]))
+    assert np.allclose(along.signed_distance_np(p, 0.0)[0],
+                       across.signed_distance_np(turned, 0.0)[0], rtol=0, atol=1e-13)
+    tops = np.array([[0.0, 0.0, 2.0], [3.0, 0.0, 9.0]])
+    assert along.signed_distance_np(tops[:1], 0.0)[0][0] == 0.0
+    assert across.signed_distance_np(tops[1:], 0.0)[0][0] == 0.0
+
+
+def test_the_3d_jobs_press_both_orientations_and_the_gap_on_one_mesh(tmp_path):
+    from fingertip_dolfinx.studies.acuity import SAMPLING_3D, study_jobs_3d, window_of
+
+    jobs = study_jobs_3d(tmp_path, (1.0,), (1.0,))
+    labels = [label for label, _, _ in jobs]
+    assert labels == ["orientation-w1-along", "orientation-w1-across", "gap-g0", "gap-g1"]
+    scenes = [scene for _, scene, _ in jobs]
+    assert [s.indenters[0].axis for s in scenes] == ["z", "x", "z", "z"]
+    assert len({(s.section, s.outputs.receptors) for s in scenes}) == 1  # one mesh, one set
+    half_width, z0, z1 = window_of(scenes[0])
+    assert scenes[1].indenters[0].centre_z == (z0 + z1) / 2 and scenes[0].section.half
+    dense = load_receptors(scenes[0].outputs.receptors)["SA1"]
+    assert dense.density == load_receptors("calibrated")["SA1"].density * SAMPLING_3D**2
+
+
+def test_the_3d_tasks_pair_the_runs_and_refuse_different_sites():
+    """d′ per population from synthetic counts (4 populations interleaved), and an error when
+    the two runs of a task were sampled at different sites."""
+    from fingertip_dolfinx.studies.acuity import summarise_3d
+
+    xz = np.column_stack((np.arange(8.0), np.zeros(8)))
+    ones, twos = np.ones(8), np.full(8, 2.0)
+    counts = {"orientation-w1-along": (xz, ones), "orientation-w1-across": (xz, twos),
+              "gap-g0": (xz, ones), "gap-g1": (xz, ones)}
+    result = summarise_3d(counts, (1.0,), (1.0,), (4.0, 4.0, 14.0))
+    each = math.sqrt(2 * 1.0 / 1.5)  # two sites per population, (2 − 1)² / 1.5 each
+    assert result["orientation"]["dprime_rows"][0] == pytest.approx([each] * 4)
+    assert result["gap"]["dprime"] == [0.0] and result["afferents_per_population"] == 2
+    counts["gap-g1"] = (xz + 1.0, ones)
+    with pytest.raises(ValueError, match="gap-g0 and gap-g1 have different afferent sites"):
+        summarise_3d(counts, (1.0,), (1.0,), (4.0, 4.0, 14.0))
+
+
+def test_a_grating_record_keeps_a_finite_depth_and_leaves_out_inf():
+    from fingertip_dolfinx.scene import load_scene, scene_record
+
+    assert "depth" not in scene_record(load_scene("grating"))["indenters"][0]
+    floored = load_scene("grating", ["indenters.0.depth=0.5"])
+    assert scene_record(floored)["indenters"][0]["depth"] == 0.5
+
+
+def test_the_3d_files_hold_each_sites_position_and_every_populations_dprime(tmp_path):
+    """acuity.csv has one d′ column per population, counts.csv each site's x and z with its
+    expected count, acuity.md the criterion and table, and the figure is drawn (synthetic
+    counts: ridges along the finger fire in bands of x, across it in bands of z)."""
+    from fingertip_dolfinx.studies.acuity import (
+        _write_tables_3d,
+        plot_acuity_3d,
+        summarise_3d,
+    )
+
+    rng = np.random.default_rng(6)
+    xz = np.column_stack((rng.uniform(-3, 3, 40), rng.uniform(6, 12, 40)))
+    bands = {"orientation-w1-along": xz[:, 0], "orientation-w1-across": xz[:, 1] - 9.0,
+             "gap-g0": 0 * xz[:, 0], "gap-g1": np.abs(xz[:, 0]) + 1.0}
+    counts = {k: (xz, 3.0 * (np.cos(np.pi * u) > 0)) for k, u in bands.items()}
+    result = summarise_3d(counts, (1.0,), (1.0,), (3.0, 6.0, 12.0))
+    _write_tables_3d(tmp_path, counts, result)
+    plot_acuity_3d(result, counts, tmp_path / "acuity.png")
+    lines = (tmp_path / "acuity.csv").read_text().splitlines()
+    assert lines[0] == "task,width_mm,dprime,dprime_pop0,dprime_pop1,dprime_pop2,dprime_pop3"
+    rows = (tmp_path / "counts.csv").read_text().splitlines()
+    assert rows[0] == "run,x_mm,z_mm,expected_count" and len(rows) == 1 + 4 * 40
+    label, x, z, mu = rows[1].split(",")
+    assert label == "orientation-w1-along" and float(x) == pytest.approx(xz[0, 0], abs=1e-6)
+    assert float(z) == pytest.approx(xz[0, 1], abs=1e-6)
+    assert "ridges along vs across" in (tmp_path / "acuity.md").read_text()
+    assert (tmp_path / "acuity.png").stat().st_size > 10_000

@@ -323,3 +323,106 @@ def test_sphere_and_x_prisms_are_refused_in_2d_and_bad_axes_named():
     with pytest.raises(InputError, match="bar.axis: got 'y'"):
         make_indenter({"shape": "bar", "width": 1.0, "axis": "y"})
     assert load_indenter("sphere") == Sphere(radius=2.0)
+
+
+# ---- oriented gratings (3D), their floor and their profile ---------------------------------
+
+GRATING_3D = Grating(width=1.0, period=2.0, ridges=5, corner_radius=0.1, centre_x=0.0,
+                     centre_z=9.0)
+
+
+def test_an_oriented_grating_has_its_exact_distance_at_chosen_points():
+    """Ridges along the finger ("z"): centres at x = 0, ±2, ±4, tops 1 mm wide, corners of
+    0.1 mm. Above a top φ is the height; in a groove's middle (x = 1) at y below the corners'
+    centres it is the horizontal distance to the flank, 0.5 mm; 0.2 mm beside a corner's centre
+    and 0.2 mm above it, the distance to that centre minus the radius."""
+    y = Y_TIP
+    points = np.array([[0.0, y + 0.3, 2.0], [2.2, y + 0.05, -7.0], [1.0, y - 1.0, 0.0],
+                       [0.6, y - 0.1 + 0.2, 30.0], [5.0, y - 2.0, 9.0]])
+    phi, n = GRATING_3D.signed_distance_np(points, y)
+    corner = math.hypot(0.2, 0.2) - 0.1
+    assert phi == pytest.approx([0.3, 0.05, 0.5, corner, 0.5], abs=1e-14)
+    assert n[0] == pytest.approx([0, 1, 0]) and n[2] == pytest.approx([-1, 0, 0])
+    assert n[3] == pytest.approx([math.sqrt(0.5), math.sqrt(0.5), 0])
+
+
+def test_turning_a_grating_across_the_finger_swaps_x_and_z_about_its_centre():
+    """axis "x" at (centre_x, centre_z): φ(x, y, z) = φ_z(centre_x + z − centre_z, y, ·) and
+    the normal's x and z components swap."""
+    across = dataclasses.replace(GRATING_3D, axis="x")
+    points = random_points_3d(500, seed=5) * [3.0, 1.0, 3.0] + [0.0, 0.0, 9.0]
+    swapped = np.column_stack((points[:, 2] - 9.0, points[:, 1], points[:, 0] + 9.0))
+    phi_x, n_x = across.signed_distance_np(points, Y_TIP)
+    phi_z, n_z = GRATING_3D.signed_distance_np(swapped, Y_TIP)
+    assert np.allclose(phi_x, phi_z, rtol=0, atol=1e-14)
+    assert np.allclose(n_x, n_z[:, [2, 1, 0]], rtol=0, atol=1e-14)
+
+
+def test_a_grating_floor_caps_the_grooves_and_inf_leaves_the_grating_unchanged():
+    """depth = inf (the default) is the grating without a floor, value for value; a floor
+    0.5 mm down is min(φ, y − (y_tip − 0.5)) with the floor's normal (0, 1) where it wins."""
+    rng = np.random.default_rng(7)
+    points = np.column_stack((rng.uniform(-3, 3, 2000), rng.uniform(-2.5, 0.6, 2000)))
+    same = dataclasses.replace(GRATING, depth=math.inf)
+    assert np.array_equal(same.signed_distance_np(points, Y_TIP)[0],
+                          GRATING.signed_distance_np(points, Y_TIP)[0])
+    floored = dataclasses.replace(GRATING, depth=0.5)
+    phi, n = floored.signed_distance_np(points, Y_TIP)
+    open_phi, open_n = GRATING.signed_distance_np(points, Y_TIP)
+    floor = points[:, 1] - (Y_TIP - 0.5)
+    assert np.allclose(phi, np.minimum(open_phi, floor), rtol=0, atol=1e-15)
+    wins = floor < open_phi
+    assert np.allclose(n[wins], [0.0, 1.0]) and np.array_equal(n[~wins], open_n[~wins])
+    # a groove's middle, 0.3 mm above the floor: 0.3 from the floor, 0.25 from the flanks
+    groove = GRATING.centre_x + GRATING.centres()[1] + 0.55
+    assert floored.signed_distance_np([[groove, Y_TIP - 0.2]], Y_TIP)[0] == pytest.approx(0.25)
+    assert floored.signed_distance_np([[groove, Y_TIP - 0.4]], Y_TIP)[0] == pytest.approx(0.1)
+
+
+@pytest.mark.parametrize("depth", [math.inf, 0.3])
+def test_the_profile_is_the_surface_the_distance_sees(depth):
+    """At every s across the ridges, (s, y_tip + profile(s)) lies on the indenter (φ = 0),
+    in 2D and on an "x" grating in 3D, where s is measured from centre_z; over a groove
+    without a floor the profile is −inf."""
+    g = dataclasses.replace(GRATING, depth=depth)
+    s = np.linspace(-3.0, 3.0, 4001)
+    h = g.profile(s)
+    finite = np.isfinite(h)
+    phi, _ = g.signed_distance_np(np.column_stack((g.centre_x + s, Y_TIP + h))[finite], Y_TIP)
+    assert np.abs(phi).max() < 1e-12
+    assert np.all(h <= 0) and np.all(h >= -depth) and (depth < math.inf) == finite.all()
+    across = dataclasses.replace(g, axis="x", centre_z=4.0)
+    points = np.column_stack((np.full(finite.sum(), 7.0), Y_TIP + h[finite], 4.0 + s[finite]))
+    assert np.abs(across.signed_distance_np(points, Y_TIP)[0]).max() < 1e-12
+
+
+def test_shifting_a_prism_moves_it_across_its_edge():
+    along, across = GRATING_3D, dataclasses.replace(GRATING_3D, axis="x")
+    assert along.shifted(0.5).centre_x == 0.5 and along.shifted(0.5).centre_z == 9.0
+    assert across.shifted(0.5).centre_z == 9.5 and across.shifted(0.5).centre_x == 0.0
+    points = random_points_3d(200, seed=9)
+    assert np.allclose(across.shifted(0.5).signed_distance_np(points + [0, 0, 0.5], Y_TIP)[0],
+                       across.signed_distance_np(points, Y_TIP)[0], rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize(
+    "data, message",
+    [
+        ({"depth": 0.1}, "grating.depth: 0.1 mm does not exceed the corner radius"),
+        ({"depth": -1.0}, "grating.depth: must be positive"),
+        ({"depth": float("nan")}, "grating.depth: must be finite"),
+        ({"axis": "y"}, "grating.axis: got 'y'"),
+        ({"width": 0.0}, "grating.width: must be positive"),
+        ({"period": "2"}, "grating.period: must be a number"),
+    ],
+)
+def test_bad_grating_keys_are_named(data, message):
+    table = {"shape": "grating", "width": 1.0, "period": 2.0, "ridges": 3,
+             "corner_radius": 0.1, **data}
+    with pytest.raises(InputError, match=message):
+        make_indenter(table, where="test.toml")
+
+
+def test_ufl_and_numpy_agree_on_a_floored_grating_across_the_finger():
+    test_ufl_and_numpy_agree_in_3d(Grating(width=1.0, period=2.0, ridges=3, corner_radius=0.1,
+                                           depth=0.4, axis="x", centre_z=0.3))

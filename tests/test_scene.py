@@ -206,7 +206,8 @@ def test_a_run_without_pictures_writes_the_numbers_only(tmp_path, monkeypatch):
     assert not list((tmp_path / "1pt").glob("*.png"))
 
 
-@pytest.mark.parametrize("name", ["line-load-3d", "2pt-3d", "probe-3d", "vibrotactile-3d"])
+@pytest.mark.parametrize("name", ["line-load-3d", "2pt-3d", "probe-3d", "vibrotactile-3d",
+                                  "grating-3d"])
 def test_the_3d_scenes_load_with_a_3d_fingertip(name):
     from fingertip_dolfinx.geometry.fingertip3d import Fingertip3D
 

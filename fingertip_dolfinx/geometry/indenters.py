@@ -19,6 +19,7 @@ profile lying in the (z, y) plane at z = centre_z (centre_x then plays no part).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, fields
@@ -52,9 +53,11 @@ _UFL = _Ops(ufl.conditional, ufl.sqrt, abs, ufl.sign)
 #: Prism directions: "z" along the finger (the plane-strain line load), "x" across it.
 AXES = ("z", "x")
 #: Keys that have a default (every other size must be given).
-OPTIONAL_KEYS = ("centre_x", "centre_z", "axis", "friction")
+OPTIONAL_KEYS = ("centre_x", "centre_z", "axis", "friction", "depth")
 #: Keys that are not sizes: any finite number (centres), or >= 0 (friction).
 _NOT_SIZES = ("centre_x", "centre_z", "friction")
+#: Sizes that may be infinite (a grating's groove depth: inf, no floor).
+_UNBOUNDED = ("depth",)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -75,7 +78,7 @@ class Indenter:
             value = getattr(self, f.name)
             if isinstance(value, bool) or not isinstance(value, int | float):
                 raise InputError(f"{self.shape}.{f.name}", f"must be a number, got {value!r}.")
-            if not math.isfinite(value):
+            if not math.isfinite(value) and not (f.name in _UNBOUNDED and value == math.inf):
                 raise InputError(f"{self.shape}.{f.name}", f"must be finite, got {value}.")
             if f.name not in _NOT_SIZES and value <= 0:
                 raise InputError(
@@ -152,6 +155,13 @@ class _Prism(Indenter):
         # `_distance` expects it (relative to centre_x).
         phi, na, ny = self._distance(z - self.centre_z + self.centre_x, y, y_tip, ops)
         return phi, [zero, ny, na]
+
+    def shifted(self, distance: float) -> _Prism:
+        """The same prism moved `distance` mm across its edge: along x for a "z" prism, along z
+        for an "x" one (how a scan moves a grating over the skin)."""
+        if self.axis == "z":
+            return dataclasses.replace(self, centre_x=self.centre_x + distance)
+        return dataclasses.replace(self, centre_z=self.centre_z + distance)
 
 
 def penetration(indenter: Indenter, points, y_tip: float) -> np.ndarray:
@@ -302,16 +312,20 @@ class Bar(_RoundCone):
 @dataclass(frozen=True, kw_only=True)
 class Grating(_Prism):
     """A square-wave grating, ridges up: `ridges` flat-topped ridges `width` wide, `period`
-    apart (grooves period − width wide, their flanks running down without end), centred on
-    centre_x; each ridge's top corners rounded by `corner_radius`. One ridge is a flat-topped
-    bar; two ridges, a bar with a gap of period − width in its middle (Johnson & Phillips
-    1981's gap stimulus).
+    apart (grooves period − width wide, `depth` deep: their floor at y_tip − depth; by default
+    their flanks run down without end), centred on centre_x; each ridge's top corners rounded
+    by `corner_radius`. One ridge is a flat-topped bar; two ridges, a bar with a gap of
+    period − width in its middle (Johnson & Phillips 1981's gap stimulus). In 3D `axis` is the
+    grating's orientation: "z", ridges along the finger; "x", across it (centred on centre_z).
 
     Each ridge is a dilation (by the corner radius r) of a convex core: the strip |q_x| <= a
     (a = width/2 − r) below the top. Distances to identical ridges at the same height grow
     with the horizontal distance to their centre lines, so the nearest ridge is the one whose
     centre line is nearest: x is folded onto it (one comparison per ridge) and that ridge's
-    exact distance taken; the union's distance is then exact.
+    exact distance taken; the union's distance is then exact. A floor (finite `depth`) joins
+    the union as the half-space below it: the distance stays exact outside the indenter and
+    near its surface; deep inside, near a groove's inner corners, it is the smaller of the two
+    depths (a lower bound of the penetration).
 
     Parameters
     ----------
@@ -325,14 +339,18 @@ class Grating(_Prism):
         Radius of the rounded top corners (mm), at most width/2 (width/2: the round-tipped bar).
     centre_x, centre_z : float, optional
         Position of the grating's centre across (and, in 3D, along) the finger (mm).
+    depth : float, optional
+        Depth of the grooves, ridge top to groove floor (mm), above corner_radius; inf (the
+        default): no floor.
     axis : str, optional
-        3D: ``"z"`` (ridges along the finger) or ``"x"`` (across it).
+        3D: the orientation, ``"z"`` (ridges along the finger) or ``"x"`` (across it).
     """
 
     width: float  # mm: the top of each ridge
     period: float  # mm: ridge centre to ridge centre
     ridges: int  # how many
     corner_radius: float  # mm: the rounded top corners
+    depth: float = math.inf  # mm: ridge top to groove floor (inf: the flanks run down)
     shape: ClassVar[str] = "grating"
 
     def __post_init__(self):
@@ -348,6 +366,11 @@ class Grating(_Prism):
             raise InputError("grating.period", f"{self.period} mm does not exceed the ridge "
                              f"width {self.width} mm: the ridges would touch.",
                              "use period > width (the groove is period − width wide).")
+        if self.depth <= self.corner_radius:
+            raise InputError("grating.depth", f"{self.depth} mm does not exceed the corner "
+                             f"radius {self.corner_radius} mm: the floor would cut the ridges' "
+                             "rounded corners.", "use depth > corner_radius, or leave depth "
+                             "out (grooves without a floor).")
 
     def tip_curvature_radius(self) -> float:
         return self.corner_radius
@@ -375,7 +398,25 @@ class Grating(_Prism):
         nx = side * ops.where(dx > 0, ops.where(dy > 0, dx / corner, 1.0),
                               ops.where(dy > dx, 0.0, 1.0))
         ny = ops.where(dx > 0, ops.where(dy > 0, dy / corner, 0.0), ops.where(dy > dx, 1.0, 0.0))
-        return phi, nx, ny
+        if math.isinf(self.depth):
+            return phi, nx, ny
+        floor = py - (y_tip - self.depth)  # the half-space below the grooves' floor
+        below = floor < phi
+        return (ops.where(below, floor, phi), ops.where(below, 0.0 * px, nx),
+                ops.where(below, 0.0 * px + 1.0, ny))
+
+    def profile(self, s) -> np.ndarray:
+        """The grating's top surface as data: its height relative to the tip (mm, <= 0) at `s`
+        mm from the grating's centre across the ridges (x − centre_x for a "z" grating,
+        z − centre_z for an "x" one): 0 on the ridges' tops, the corners' arcs, −depth (−inf
+        without a floor) over the grooves."""
+        u = np.asarray(s, dtype=float)
+        r, a = self.corner_radius, self.width / 2 - self.corner_radius
+        q = np.min(np.abs(u[..., None] - self.centres()), axis=-1) - a  # beyond the flat top
+        with np.errstate(invalid="ignore"):
+            arc = r - np.sqrt(r * r - q * q)
+        h = np.where(q <= 0, 0.0, np.where(q <= r, -arc, -np.inf))
+        return np.maximum(h, -self.depth)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -90,11 +90,11 @@ def dprime_threshold(widths, dprimes, level: float = LEVEL) -> dict:
     return population_threshold(widths, -np.asarray(dprimes, dtype=float), -level)
 
 
-def grating_table(width: float, phase: str) -> dict:
+def grating_table(width: float, phase: str, span: float = GRATING_SPAN) -> dict:
     """The indenter table of a grating of ridges and grooves `width` wide: phase "A" a ridge
-    centred at x = 0, "B" a groove there; an odd number of ridges spanning GRATING_SPAN."""
+    centred at x = 0, "B" a groove there; an odd number of ridges spanning `span`."""
     period = 2 * width
-    ridges = 2 * math.ceil(GRATING_SPAN / 2 / period) + 1
+    ridges = 2 * math.ceil(span / 2 / period) + 1
     return {"file": "grating", "width": width, "period": period, "ridges": ridges,
             "corner_radius": CORNER, "centre_x": 0.0 if phase == "A" else width}
 
@@ -129,7 +129,7 @@ def sampling_set(path: Path, source: str = "calibrated", k: int = SAMPLING) -> P
 
     record = load_receptors(source).record()
     sa1 = dict(record["SA1"], density=record["SA1"]["density"] * k**2)
-    sa1["description"] = f"{source}'s SA1, sampled {k} times denser along the row"
+    sa1["description"] = f"{source}'s SA1, density x {k * k} ({k} times denser along a row)"
     lines = [f"name = {toml_value(f'{source}-sa1-x{k}')}", "[sites]",
              f"half_width = {toml_value(float(record['sites']['half_width']))}", "[SA1]"]
     lines += [f"{key} = {toml_value(value)}" for key, value in sa1.items()]
@@ -144,18 +144,25 @@ def expected_counts(run_dir, population) -> tuple[np.ndarray, np.ndarray]:
     """(x_mm, μ) of the SA1 sites of a run, ordered along x: μ is the mean over the class's
     fits of each fitted afferent's spike count over the whole run, all driven by the site's
     own samples (noise off)."""
-    from ..afferents.receptors import afferent_responses, saal_spikes
+    from ..afferents.receptors import afferent_responses
 
     responses = afferent_responses(run_dir, population)
     sa1 = responses.of("SA1")
     order = np.argsort(responses.x[sa1])
-    x, stimulus = responses.x[sa1][order], responses.stimulus[:, sa1][:, order]
-    c = population["SA1"]
+    return responses.x[sa1][order], fit_mean_counts(population["SA1"], responses.time,
+                                                    responses.stimulus[:, sa1][:, order])
+
+
+def fit_mean_counts(c, time, stimulus) -> np.ndarray:
+    """Per site (columns of `stimulus`, sampled at `time`) the mean over the class's fits of
+    each fit's spike count over the whole run, every fit driven by the site's samples."""
+    from ..afferents.receptors import saal_spikes
+
     fits = list(range(len(c.saal.fits)))
     drives = np.repeat(stimulus.T, len(fits), axis=0)  # each site once per fit
-    trains = saal_spikes(c, fits * len(x), responses.time, drives)
-    counts = np.array([len(t) for t in trains], dtype=float).reshape(len(x), len(fits))
-    return x, counts.mean(axis=1)
+    trains = saal_spikes(c, fits * stimulus.shape[1], time, drives)
+    counts = np.array([len(t) for t in trains], dtype=float).reshape(-1, len(fits))
+    return counts.mean(axis=1)
 
 
 def study_jobs(out: Path, widths, gaps, overrides=()) -> list[tuple]:
@@ -196,17 +203,21 @@ def run_acuity(out, widths=WIDTHS, gaps=GAPS, overrides=(), progress: bool = Tru
 def summarise(counts: dict, widths, gaps) -> dict:
     """Per task the widths, the d′ per row offset and their mean, the threshold and the
     measured one, from the expected counts of every run ({label: (x, μ)})."""
-    def task(pairs, sizes, name):
-        rows = [row_dprimes(counts[a][1], counts[b][1]).tolist() for a, b in pairs]
-        mean = [float(np.mean(r)) for r in rows]
-        return {"widths_mm": list(sizes), "dprime_rows": rows, "dprime": mean,
-                **dprime_threshold(sizes, mean), "measured_mm": MEASURED[name][0],
-                "measured_source": MEASURED[name][1]}
-
     return {"criterion": CRITERION, "sampling": SAMPLING, "gap_bar_mm": GAP_BAR,
-            "grating": task([(f"grating-w{w:g}-A", f"grating-w{w:g}-B") for w in widths],
-                            widths, "grating"),
-            "gap": task([("gap-g0", f"gap-g{g:g}") for g in gaps], gaps, "gap")}
+            "grating": _task(counts, [(f"grating-w{w:g}-A", f"grating-w{w:g}-B")
+                                      for w in widths], widths, "grating", SAMPLING),
+            "gap": _task(counts, [("gap-g0", f"gap-g{g:g}") for g in gaps], gaps, "gap",
+                         SAMPLING)}
+
+
+def _task(counts: dict, pairs, sizes, name: str, k: int) -> dict:
+    """One task's d′ per population (`row_dprimes` with k) and their mean for each pair of
+    runs (A, B), its threshold and the measured one."""
+    rows = [row_dprimes(counts[a][1], counts[b][1], k).tolist() for a, b in pairs]
+    mean = [float(np.mean(r)) for r in rows]
+    return {"widths_mm": list(sizes), "dprime_rows": rows, "dprime": mean,
+            **dprime_threshold(sizes, mean), "measured_mm": MEASURED[name][0],
+            "measured_source": MEASURED[name][1]}
 
 
 def read_counts(path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
@@ -309,3 +320,245 @@ def _profiles(ax, counts: dict, a: str, b: str, labels, title: str) -> None:
     ax.set(xlabel="x of the site (mm)", ylabel="expected SA1 spikes in 1 s", title=title,
            xlim=(-5, 5))
     ax.legend(fontsize=7)
+
+
+# --- 3D: oriented gratings and a gap on the 3D fingertip -----------------------------------
+#
+# The tasks need no stand-in there. Orientation: the same grating (ridge = groove = w, a ridge
+# centred under the middle of the window) with its ridges along the finger (axis "z") or
+# across it ("x"). Gap: the GAP_BAR bar along the finger, with or without a gap g along its
+# middle (the 2D stimulus extruded along z). The SA1 population covers the pulp surface at
+# SAMPLING_3D² times the class's density (`afferents.receptors.surface_sites`, uniform at
+# random, fixed seed): every (SAMPLING_3D²)-th site of it is a population at the real density,
+# so one run gives SAMPLING_3D² populations. Only the sites inside the mesh's refinement
+# window (|x| < refine_half_width, refine_z_min < z < refine_z_max: where the 0.4 mm elements
+# resolve the ridges) are read: the observer's population is the window's, not the whole
+# contact's (which runs along the whole cylinder under a flat indenter).
+
+#: The 3D study's scene (half model; every stimulus is symmetric about x = 0).
+SCENE_3D = "grating-3d"
+#: Ridge width and gap of the default 3D study (mm): the smallest the scene's 0.4 mm surface
+#: elements (P2: nodes 0.2 mm apart) resolve, 2.5 elements across a ridge (four 3D runs).
+WIDTHS_3D = (1.0,)
+GAPS_3D = (1.0,)
+#: The grating's orientations: ridges along the finger (a "z" prism) or across it ("x").
+ORIENTATIONS = {"along": "z", "across": "x"}
+#: An oriented grating spans at least this (mm): the contact of a 1 mm press covers |x| < ~4
+#: mm and the whole cylinder along z (0 to ~17 mm), around the window's middle.
+GRATING_SPAN_3D = 24.0
+#: The 3D population is SAMPLING_3D² times the class's density.
+SAMPLING_3D = 2
+CRITERION_3D = (f"ideal observer of the SA1 spike counts in the refined window (Poisson, "
+                f"independent): d'^2 = sum (muA - muB)^2 / ((muA + muB)/2), mean over "
+                f"{SAMPLING_3D ** 2} random populations at the class's density; threshold "
+                f"where d' = {LEVEL:g} (linear interpolation)")
+#: The 2D study's answers (docs/results/acuity/; its grating task is the phase stand-in).
+TWO_D = {"orientation": "< 0.5 (phase A vs B)", "gap": "0.70"}
+
+
+def window_of(scene) -> tuple[float, float, float]:
+    """(half-width, z_min, z_max) of a 3D scene's mesh refinement footprint (mm)."""
+    tip = scene.section
+    return tip.section.mesh.refine_half_width, tip.refine_z_min, tip.refine_z_max
+
+
+def oriented_table(width: float, orientation: str, centre_z: float) -> dict:
+    """The indenter table of the grating `width` wide with its ridges `orientation` ("along"
+    or "across" the finger), a ridge centred at x = 0 (along) or z = centre_z (across)."""
+    return {**grating_table(width, "A", GRATING_SPAN_3D), "axis": ORIENTATIONS[orientation],
+            "centre_z": centre_z}
+
+
+def study_jobs_3d(out: Path, widths, gaps, overrides=()) -> list[tuple]:
+    """(label, scene, directory) of every 3D run: each width's grating along and across the
+    finger, the bar along the finger without a gap and with each gap."""
+    from ..scene import load_scene, toml_value
+
+    receptors = sampling_set(out / "sa1-row.toml", k=SAMPLING_3D)
+    common = [*overrides, f"output.receptors={toml_value(str(receptors))}"]
+    z0, z1 = window_of(load_scene(SCENE_3D, common))[1:]
+    centre = (z0 + z1) / 2
+    tables = [(f"orientation-w{w:g}-{o}", oriented_table(w, o, centre))
+              for w in widths for o in ORIENTATIONS]
+    tables += [(f"gap-g{g:g}", {**gap_table(g), "axis": "z", "centre_z": centre})
+               for g in ((0.0, *gaps) if gaps else ())]
+    return [(label, load_scene(SCENE_3D, [*common, f"indenters=[{toml_value(t)}]"]),
+             out / label) for label, t in tables]
+
+
+def finished(scene, where: Path) -> bool:
+    """Whether `where` holds a finished run of exactly this scene (its summary's scene record
+    equal to the scene's): the study reuses it instead of running it again."""
+    import json
+
+    from ..scene import scene_record
+
+    path = Path(where) / "summary.json"
+    if not path.exists():
+        return False
+    recorded = json.loads(path.read_text()).get("scene_data")
+    return recorded == json.loads(json.dumps(scene_record(scene), default=str))
+
+
+def expected_counts_3d(run_dir, population, window) -> tuple[np.ndarray, np.ndarray]:
+    """((x, z) of each SA1 site inside the window, μ): the sites in their population's order
+    (x < 0: a site on the mirrored half), μ the mean over the class's fits of the spike count
+    over the whole run (`fit_mean_counts`)."""
+    from ..afferents.receptors import afferent_responses
+    from ..result import Result
+
+    responses = afferent_responses(run_dir, population)
+    sa1 = np.flatnonzero(responses.of("SA1"))
+    table = Result(run_dir).receptors()
+    rows = table["class"] == "SA1"
+    z_of = dict(zip(table["index"][rows].tolist(), table["z_mm"][rows].tolist()))
+    x, z = responses.x[sa1], np.array([z_of[i] for i in responses.index[sa1].tolist()])
+    half_width, z_min, z_max = window
+    inside = (np.abs(x) < half_width) & (z > z_min) & (z < z_max)
+    mu = fit_mean_counts(population["SA1"], responses.time, responses.stimulus[:, sa1[inside]])
+    return np.column_stack((x[inside], z[inside])), mu
+
+
+def run_acuity_3d(out, widths=WIDTHS_3D, gaps=GAPS_3D, overrides=(),
+                  progress: bool = True) -> dict:
+    """Run every 3D stimulus not already finished in `out` (side by side under MPI), then the
+    d′ of each task and width and the thresholds: out/acuity.csv, counts.csv (μ per run and
+    site), summary.json, acuity.md and acuity.png. Returns the summary (on every rank)."""
+    from ..afferents.receptors import load_receptors
+    from ..runner import run_side_by_side
+
+    out = Path(out)
+    jobs = study_jobs_3d(out, widths, gaps, overrides)
+    todo = [(scene, where) for _, scene, where in jobs if not finished(scene, where)]
+    run_side_by_side(todo, progress=progress)
+    result = None
+    if MPI.COMM_WORLD.rank == 0:
+        population = load_receptors(out / "sa1-row.toml")
+        window = window_of(jobs[0][1])
+        counts = {label: expected_counts_3d(where, population, window)
+                  for label, _, where in jobs}
+        result = summarise_3d(counts, widths, gaps, window)
+        result["runs"] = {label: run_cost(where) for label, _, where in jobs}
+        _write_tables_3d(out, counts, result)
+        plot_acuity_3d(result, counts, out / "acuity.png")
+    result = MPI.COMM_WORLD.bcast(result, root=0)
+    write_json(out / "summary.json", result, MPI.COMM_WORLD)
+    return result
+
+
+def summarise_3d(counts: dict, widths, gaps, window) -> dict:
+    """The 3D tasks' d′ (per population and mean) and thresholds from the expected counts of
+    every run ({label: (positions, μ)}); the two runs of a task must share their sites."""
+    pairs = {"orientation": [(f"orientation-w{w:g}-along", f"orientation-w{w:g}-across")
+                             for w in widths],
+             "gap": [("gap-g0", f"gap-g{g:g}") for g in gaps]}
+    for a, b in (p for task in pairs.values() for p in task):
+        if not np.array_equal(counts[a][0], counts[b][0]):
+            raise ValueError(f"acuity 3D: runs {a} and {b} have different afferent sites")
+    k = SAMPLING_3D**2
+    some = next(iter(counts.values()))[0]
+    return {"criterion": CRITERION_3D, "populations": k, "gap_bar_mm": GAP_BAR,
+            "window_mm": dict(zip(("half_width", "z_min", "z_max"), window)),
+            "afferents_per_population": len(some) / k,
+            "orientation": _task(counts, pairs["orientation"], widths, "grating", k),
+            "gap": _task(counts, pairs["gap"], gaps, "gap", k)}
+
+
+def run_cost(where) -> dict:
+    """Steps, Newton iterations, wall time and dofs of a finished run (its summary.json); a
+    run that stopped early is an error (its counts would be a shorter stimulus's)."""
+    import json
+
+    summary = json.loads((Path(where) / "summary.json").read_text())
+    if not summary.get("converged"):
+        raise RuntimeError(f"acuity 3D: the run in {where} stopped early: "
+                           f"{summary.get('failure')}; delete it and run the study again")
+    keys = ("time_steps", "newton_iterations", "wall_time_s", "dofs")
+    return {key: summary.get(key) for key in keys}
+
+
+def acuity_table_3d(result: dict) -> str:
+    """The 3D predictions beside the 2D study's and the measured thresholds (Markdown)."""
+    lines = ["| task | this package, 3D (mm) | 2D (mm) | measured (mm) | source |",
+             "| --- | --- | --- | --- | --- |"]
+    for name, what in (("orientation", "grating orientation (ridges along vs across)"),
+                       ("gap", f"gap in a {result['gap_bar_mm']:g} mm bar vs none")):
+        t = result[name]
+        if t["widths_mm"]:
+            lines.append(f"| {what} | {_threshold_text(t)} | {TWO_D[name]} | "
+                         f"{t['measured_mm']:g} | {t['measured_source']} |")
+    return "\n".join(lines) + "\n"
+
+
+def _write_tables_3d(out: Path, counts: dict, result: dict) -> None:
+    """acuity.csv (d′ per task, width and population), counts.csv (μ per run and site with
+    its x, z), acuity.md (criterion and table)."""
+    k = result["populations"]
+    with (out / "acuity.csv").open("w") as f:
+        f.write("task,width_mm,dprime," + ",".join(f"dprime_pop{j}" for j in range(k)) + "\n")
+        for name in ("orientation", "gap"):
+            t = result[name]
+            for w, d, rows in zip(t["widths_mm"], t["dprime"], t["dprime_rows"]):
+                f.write(f"{name},{w:g},{d:.6g}," + ",".join(f"{r:.6g}" for r in rows) + "\n")
+    with (out / "counts.csv").open("w") as f:
+        f.write("run,x_mm,z_mm,expected_count\n")
+        for label, (xz, mu) in counts.items():
+            f.writelines(f"{label},{p[0]:.6f},{p[1]:.6f},{m:.6g}\n" for p, m in zip(xz, mu))
+    (out / "acuity.md").write_text(f"Criterion: {result['criterion']}.\n\n"
+                                   + acuity_table_3d(result))
+
+
+def plot_acuity_3d(result: dict, counts: dict, path: Path) -> None:
+    """The expected counts of the window's sites over the surface (x across, z along the
+    finger; both halves) for the grating along and across the finger and the bar without and
+    with a gap (each pair on one colour scale), and d′ against width per task."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(12.5, 7.6), layout="constrained")
+    axes = fig.subplots(2, 3)
+    w = min(result["orientation"]["widths_mm"] or [1.0], key=lambda v: abs(v - 1.0))
+    g = min(result["gap"]["widths_mm"] or [1.0], key=lambda v: abs(v - 1.0))
+    rows = ((f"orientation-w{w:g}-along", f"{w:g} mm grating, ridges along the finger"),
+            (f"orientation-w{w:g}-across", f"{w:g} mm grating, ridges across the finger")), (
+           ("gap-g0", f"{result['gap_bar_mm']:g} mm bar along the finger, no gap"),
+           (f"gap-g{g:g}", f"the same bar with a {g:g} mm gap"))
+    for panels, pair in zip(axes[:, :2], rows):
+        _surface_counts(fig, panels, counts, pair)
+    _dprime_panel(axes[0, 2], result)
+    axes[1, 2].set_axis_off()
+    fig.savefig(path, dpi=150)
+
+
+def _surface_counts(fig, panels, counts: dict, pair) -> None:
+    """Two runs' expected counts at their sites, on one colour scale."""
+    present = [(label, title) for label, title in pair if label in counts]
+    top = max([counts[label][1].max() for label, _ in present] + [1.0])
+    for ax, (label, title) in zip(panels, present):
+        xz, mu = counts[label]
+        dots = ax.scatter(xz[:, 1], xz[:, 0], c=mu, s=14, cmap="viridis", vmin=0, vmax=top)
+        ax.set(xlabel="z along the finger (mm)", ylabel="x across the finger (mm)",
+               title=title, aspect="equal")
+        ax.title.set_fontsize(9)
+    if present:
+        fig.colorbar(dots, ax=list(panels), label="expected SA1 spikes in the run", shrink=0.8)
+
+
+def _dprime_panel(ax, result: dict) -> None:
+    """d′ against width per 3D task, its populations as dots, the criterion, the measured."""
+    k = result["populations"]
+    for name, colour in (("orientation", "C0"), ("gap", "C1")):
+        t = result[name]
+        if not t["widths_mm"]:
+            continue
+        ax.plot(t["widths_mm"], t["dprime"], "o-", color=colour,
+                label=f"{name}: predicted {_threshold_text(t).split(' (')[0]} mm")
+        ax.plot(np.repeat(t["widths_mm"], k), np.ravel(t["dprime_rows"]), ".", color=colour,
+                alpha=0.35)
+        ax.axvline(t["measured_mm"], color=colour, ls=":",
+                   label=f"{name}: measured {t['measured_mm']:g} mm")
+    ax.axhline(LEVEL, color="k", lw=0.8, ls="--", label=f"d′ = {LEVEL:g}")
+    sizes = [v for name in ("orientation", "gap") for v in result[name]["widths_mm"]]
+    ax.set(xlabel="ridge width or gap (mm)", ylabel="d′ of the window's SA1 (dots: populations)",
+           title="3D: SA1 ideal observer, Poisson counts", xlim=(0, 1.3 * max(sizes + [1.0])))
+    ax.title.set_fontsize(9)
+    ax.legend(fontsize=7, loc="upper left")
