@@ -19,6 +19,7 @@ from fingertip_dolfinx.studies.acuity import (
     grating_table,
     poisson_dprime,
     row_dprimes,
+    same_sites,
     sampling_set,
 )
 
@@ -217,3 +218,28 @@ def test_the_3d_files_hold_each_sites_position_and_every_populations_dprime(tmp_
     assert float(z) == pytest.approx(xz[0, 1], abs=1e-6)
     assert "ridges along vs across" in (tmp_path / "acuity.md").read_text()
     assert (tmp_path / "acuity.png").stat().st_size > 10_000
+
+
+def test_a_run_is_reused_for_a_new_calibration_but_not_for_other_sites(tmp_path):
+    """The study counts spikes from each run's sampled stimulus, so a run that sampled the same
+    sites is reused when only the transduction (its input scale) changed, and run again when
+    the sites moved (depth) or read another quantity."""
+    import json
+
+    sites = sampling_set(tmp_path / "sa1-row.toml")
+    run = tmp_path / "run"
+    run.mkdir()
+    record = load_receptors(sites).record()
+
+    def ran_with(**changes):
+        ran = json.loads(json.dumps(record))
+        ran["SA1"].update(changes)
+        (run / "receptors.json").write_text(json.dumps(ran))
+        return same_sites(run, sites)
+
+    assert ran_with()
+    assert ran_with(saal2017=dict(record["SA1"]["saal2017"], input_scale=1.0))
+    assert not ran_with(depth=record["SA1"]["depth"] + 0.25)
+    assert not ran_with(quantity="strain_energy_density")
+    (run / "receptors.json").unlink()
+    assert not same_sites(run, sites)

@@ -179,15 +179,17 @@ def study_jobs(out: Path, widths, gaps, overrides=()) -> list[tuple]:
 
 
 def run_acuity(out, widths=WIDTHS, gaps=GAPS, overrides=(), progress: bool = True) -> dict:
-    """Run every stimulus (side by side under MPI), then per task the d′ of each width and
-    the threshold: out/acuity.csv, counts.csv, summary.json, acuity.md (the table) and
-    acuity.png. Returns the summary (on every rank)."""
+    """Run every stimulus not already finished in `out` (side by side under MPI), then per task
+    the d′ of each width and the threshold: out/acuity.csv, counts.csv, summary.json,
+    acuity.md (the table) and acuity.png. Returns the summary (on every rank)."""
     from ..afferents.receptors import load_receptors
     from ..runner import run_side_by_side
 
     out = Path(out)
     jobs = study_jobs(out, widths, gaps, overrides)
-    run_side_by_side([(scene, where) for _, scene, where in jobs], progress=progress)
+    todo = [(scene, where) for _, scene, where in jobs
+            if not finished(scene, where, out / "sa1-row.toml")]
+    run_side_by_side(todo, progress=progress)
     result = None
     if MPI.COMM_WORLD.rank == 0:
         population = load_receptors(out / "sa1-row.toml")
@@ -386,9 +388,16 @@ def study_jobs_3d(out: Path, widths, gaps, overrides=()) -> list[tuple]:
              out / label) for label, t in tables]
 
 
-def finished(scene, where: Path) -> bool:
+#: What places and samples a class's sites; the rest of its record (the transduction model and
+#: its input scale) is applied to the sampled stimulus when the study counts spikes.
+SITE_KEYS = ("depth", "density", "quantity")
+
+
+def finished(scene, where: Path, sites: Path | None = None) -> bool:
     """Whether `where` holds a finished run of exactly this scene (its summary's scene record
-    equal to the scene's): the study reuses it instead of running it again."""
+    equal to the scene's) and, given the receptor set `sites`, one that sampled the same sites
+    (`same_sites`): the study reuses it instead of running it again. So a study rerun after
+    a change of the afferents' calibration counts again from the runs' mechanics."""
     import json
 
     from ..scene import scene_record
@@ -397,7 +406,25 @@ def finished(scene, where: Path) -> bool:
     if not path.exists():
         return False
     recorded = json.loads(path.read_text()).get("scene_data")
-    return recorded == json.loads(json.dumps(scene_record(scene), default=str))
+    same = recorded == json.loads(json.dumps(scene_record(scene), default=str))
+    return same and (sites is None or same_sites(where, sites))
+
+
+def same_sites(where: Path, sites: Path) -> bool:
+    """Whether the run in `where` sampled the sites of the receptor set file `sites`: the same
+    site table and, per class, the same depth, density and quantity (its receptors.json)."""
+    import json
+
+    from ..afferents.receptors import load_receptors
+
+    path = Path(where) / "receptors.json"
+    if not path.exists():
+        return False
+    ran, now = json.loads(path.read_text()), load_receptors(sites).record()
+    classes = [k for k in now if isinstance(now[k], dict) and k != "sites"]
+    return (ran.get("sites") == now.get("sites") and set(classes) <= set(ran)
+            and all({k: ran[c].get(k) for k in SITE_KEYS} == {k: now[c].get(k) for k in SITE_KEYS}
+                    for c in classes))
 
 
 def expected_counts_3d(run_dir, population, window) -> tuple[np.ndarray, np.ndarray]:
@@ -429,7 +456,8 @@ def run_acuity_3d(out, widths=WIDTHS_3D, gaps=GAPS_3D, overrides=(),
 
     out = Path(out)
     jobs = study_jobs_3d(out, widths, gaps, overrides)
-    todo = [(scene, where) for _, scene, where in jobs if not finished(scene, where)]
+    todo = [(scene, where) for _, scene, where in jobs
+            if not finished(scene, where, out / "sa1-row.toml")]
     run_side_by_side(todo, progress=progress)
     result = None
     if MPI.COMM_WORLD.rank == 0:
