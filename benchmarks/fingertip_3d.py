@@ -12,7 +12,8 @@ the assembly's share. Run it for two sizes and 1-2 ranks:
         --set model.rigid_bone=true
     .venv/bin/mpiexec -n 2 .venv/bin/python benchmarks/fingertip_3d.py --min-size 0.4
 
-`--assembly N` only builds the scene and times N Jacobian assemblies at a smooth deformed state
+`--assembly N` only builds the scene and times N Jacobian and residual assemblies, and the contact
+terms alone, at a smooth deformed state
 (strains of a few per cent), wall and CPU seconds: the cost of one Newton iteration's Jacobian,
 e.g. for `--set model.quadrature_degree=2` against 4.
 """
@@ -59,6 +60,9 @@ def main():
     PETSc.Log.begin()  # the linear solver's events: solve, preconditioner set-up, LU
     jacobian = tally(dolfinx.fem.petsc, "assemble_jacobian")
     residual = tally(dolfinx.fem.petsc, "assemble_residual")
+    phases = {"set-up (mesh, forms, solver)": tally(Run, "__init__"),
+              "output per step (history, fields, checkpoint)": tally(Run, "on_step"),
+              "summary and figures": tally(Run, "finish")}
     load = os.getloadavg()
     started, cpu = time.perf_counter(), time.process_time()
     summary = run_scene(scene, out, progress=False)
@@ -84,6 +88,8 @@ def main():
           f"{jw:.2f} / {jc:.2f}, residual {residual.calls} x {rw:.3f} / {rc:.3f}; quadrature "
           f"degree {scene.model.quadrature_degree}")
     print(f"linear solver on rank 0 (wall s in all / calls): {solver_events(PETSc)}")
+    print("phases on rank 0 (wall / CPU s in all, calls): " + ", ".join(
+        f"{name} {t.wall:.1f} / {t.cpu:.1f} ({t.calls})" for name, t in phases.items()))
     print(f"peak memory: {max(rss):.0f} MiB per rank (max), {sum(rss):.0f} MiB in all")
     print(f"peak force {summary['peak_force_N']:.4g} N (x{summary['mirror_factor']} for the "
           f"whole finger); results in {out}")
@@ -91,17 +97,24 @@ def main():
 
 def solver_events(PETSc) -> str:
     """PETSc's wall seconds and calls of the linear solves (KSPSolve, which includes the
-    preconditioner's set-up, PCSetUp) and of LU factorisations (MUMPS, or the stiff block's)."""
+    preconditioner's set-up, PCSetUp) and of LU factorisations (MUMPS, or the stiff block's:
+    the analysis and ordering MatLUFactorSym, the numerical factorisation MatLUFactorNum, the
+    triangular solves MatSolve)."""
     parts = []
-    for name in ("KSPSolve", "PCSetUp", "MatLUFactorNum"):
+    for name in ("SNESSolve", "KSPSolve", "PCSetUp", "MatLUFactorSym", "MatLUFactorNum",
+                 "MatSolve"):
         info = PETSc.Log.Event(name).getPerfInfo()
         parts.append(f"{name} {info.get('time', 0.0):.1f} s / {info.get('count', 0)}")
     return ", ".join(parts)
 
 
 def time_assembly(scene, out: Path, repeats: int) -> None:
-    """Wall and CPU seconds of one Jacobian assembly (min over `repeats`) at a smooth state."""
+    """Wall and CPU seconds (min over `repeats`) at a smooth deformed state of one Jacobian
+    assembly, one residual assembly, and of the contact terms' own residual and Jacobian
+    (compiled apart: in the Newton forms they are part of the displacement block)."""
     import dolfinx.fem.petsc  # after the package, which sets up the DOLFINx wheel
+    import ufl
+    from dolfinx import fem
 
     comm = MPI.COMM_WORLD
     job = Run(scene, out, comm, resume=False, progress=False)
@@ -109,19 +122,41 @@ def time_assembly(scene, out: Path, repeats: int) -> None:
     problem.u.interpolate(lambda x: np.array([0.02 * x[0], -0.05 * x[1] + 0.03 * np.sin(x[2]),
                                               0.01 * x[2]]))
     dolfinx.fem.petsc.assign(problem.unknowns, nonlinear.x)
-    J, P, (assemble, args, kargs) = nonlinear.solver.getJacobian()
+    snes = nonlinear.solver
+    J, P, (jacobian, args, kargs) = snes.getJacobian()
+    b, (residual, rargs, rkargs) = snes.getFunction()
+    contact = problem.contact.residual(ufl.TestFunction(problem.V))
+    R_c = fem.form(contact, jit_options=problem.jit_options)
+    J_c = fem.form(ufl.derivative(contact, problem.u), jit_options=problem.jit_options)
+    calls = {"Jacobian": lambda: jacobian(snes, nonlinear.x, J, P, *args, **(kargs or {})),
+             "residual": lambda: residual(snes, nonlinear.x, b, *rargs, **(rkargs or {})),
+             "contact residual": lambda: fem.petsc.assemble_vector(R_c).destroy(),
+             "contact Jacobian": lambda: _assembled(fem.petsc.assemble_matrix(J_c))}
+    times = {name: _min_time(call, repeats, comm) for name, call in calls.items()}
+    if comm.rank == 0:
+        print(f"assembly, quadrature degree {scene.model.quadrature_degree}, "
+              f"{job.fm.mesh.topology.index_map(3).size_global} cells, {job.dofs} dofs, "
+              f"{comm.size} rank(s), min over {repeats} calls (wall s, CPU s per rank): "
+              + "; ".join(f"{name} {w:.3f}, {', '.join(f'{c:.3f}' for c in cpu)}"
+                          for name, (w, cpu) in times.items())
+              + f"; load average {os.getloadavg()[0]:.2f}")
+
+
+def _assembled(A) -> None:
+    A.assemble()
+    A.destroy()
+
+
+def _min_time(call, repeats: int, comm) -> tuple[float, list[float]]:
+    """The least wall seconds (rank 0) and CPU seconds (each rank) of `repeats` calls."""
     walls, cpus = [], []
     for _ in range(repeats):
+        comm.barrier()
         wall, cpu = time.perf_counter(), time.process_time()
-        assemble(nonlinear.solver, nonlinear.x, J, P, *args, **(kargs or {}))
+        call()
         walls.append(time.perf_counter() - wall)
         cpus.append(time.process_time() - cpu)
-    cpu = comm.gather(min(cpus), root=0)
-    if comm.rank == 0:
-        print(f"Jacobian assembly, quadrature degree {scene.model.quadrature_degree}, "
-              f"{job.fm.mesh.topology.index_map(3).size_global} cells, {job.dofs} dofs, "
-              f"{comm.size} rank(s): min over {repeats} calls {min(walls):.2f} s wall, CPU per "
-              f"rank {', '.join(f'{c:.2f}' for c in cpu)} s; load average {os.getloadavg()[0]:.2f}")
+    return min(walls), comm.gather(min(cpus), root=0)
 
 
 if __name__ == "__main__":
