@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from .errors import InputError
+from .errors import InputError, on_root
 from .loading import history_from_dict
 
 #: The columns of the result files (stable names: other tools read them).
@@ -183,10 +183,13 @@ def read_csv(path: Path) -> dict[str, np.ndarray]:
 
 
 def write_json(path: Path, data: dict, comm: MPI.Comm) -> None:
-    """`data` as JSON into `path`, written whole (rank 0)."""
-    if comm.rank == 0:
+    """`data` as JSON into `path`, written whole by rank 0; every rank of `comm` calls it and
+    returns once the file is there, or raises if rank 0 could not write it (`on_root`)."""
+    def write() -> None:
         with whole(path) as tmp:
             tmp.write_text(json.dumps(data, indent=2, default=_jsonable) + "\n")
+
+    on_root(comm, write)
 
 
 def save_npz(path: Path, **arrays) -> None:
