@@ -161,7 +161,9 @@ def _add_study(subparsers) -> None:
         "beside the methods that work (DIR/stability.csv, .md, figures). acuity: gratings "
         "and gaps pressed into the section, the SA1 population's spike counts and the widths "
         "an ideal observer tells apart (d' = 1), next to the measured thresholds "
-        "(DIR/acuity.md, acuity.csv, counts.csv, acuity.png; coarse mesh unless --full).",
+        "(DIR/acuity.md, acuity.csv, counts.csv, acuity.png; coarse mesh unless --full); "
+        "finished runs in DIR that sampled the same sites are reused and counted again with "
+        "the receptor set's current calibration.",
     )
     p.add_argument("kind", choices=("accuracy", "fidelity", "stability", "acuity"))
     p.add_argument("--scene", default=None,
@@ -180,8 +182,8 @@ def _add_study(subparsers) -> None:
                    help="acuity: gaps in the 4 mm bar in mm (default 0.5 1 1.5 2; --3d: 1)")
     p.add_argument("--3d", dest="three_d", action="store_true",
                    help="acuity: on the 3D fingertip (scene grating-3d): the grating along "
-                   "vs across the finger and the gap, one run at a time per rank group, "
-                   "finished runs in --out reused (default width 1, gap 1)")
+                   "vs across the finger and the gap, one run at a time per rank group "
+                   "(default width 1, gap 1)")
     _add_scene_options(p)
     p.set_defaults(handler=_run_study)
 
