@@ -112,16 +112,12 @@ def time_assembly(scene, out: Path, repeats: int) -> None:
     """Wall and CPU seconds (min over `repeats`) at a smooth deformed state of one Jacobian
     assembly, one residual assembly, and of the contact terms' own residual and Jacobian
     (compiled apart: in the Newton forms they are part of the displacement block)."""
-    import dolfinx.fem.petsc  # after the package, which sets up the DOLFINx wheel
     import ufl
     from dolfinx import fem
 
     comm = MPI.COMM_WORLD
-    job = Run(scene, out, comm, resume=False, progress=False)
+    job = smooth_state(scene, out, comm)
     problem, nonlinear = job.problem, job.stepper.nonlinear
-    problem.u.interpolate(lambda x: np.array([0.02 * x[0], -0.05 * x[1] + 0.03 * np.sin(x[2]),
-                                              0.01 * x[2]]))
-    dolfinx.fem.petsc.assign(problem.unknowns, nonlinear.x)
     snes = nonlinear.solver
     J, P, (jacobian, args, kargs) = snes.getJacobian()
     b, (residual, rargs, rkargs) = snes.getFunction()
@@ -140,6 +136,19 @@ def time_assembly(scene, out: Path, repeats: int) -> None:
               + "; ".join(f"{name} {w:.3f}, {', '.join(f'{c:.3f}' for c in cpu)}"
                           for name, (w, cpu) in times.items())
               + f"; load average {os.getloadavg()[0]:.2f}")
+
+
+def smooth_state(scene, out: Path, comm) -> Run:
+    """The scene's run set up (not stepped) with its unknowns at a smooth deformed state of
+    strains of a few per cent, where Jacobians and residuals are assembled and timed."""
+    import dolfinx.fem.petsc  # after the package, which sets up the DOLFINx wheel
+
+    job = Run(scene, out, comm, resume=False, progress=False)
+    job.problem.u.interpolate(lambda x: np.array([0.02 * x[0],
+                                                  -0.05 * x[1] + 0.03 * np.sin(x[2]),
+                                                  0.01 * x[2]]))
+    dolfinx.fem.petsc.assign(job.problem.unknowns, job.stepper.nonlinear.x)
+    return job
 
 
 def _assembled(A) -> None:

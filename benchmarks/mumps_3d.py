@@ -22,10 +22,10 @@ import time
 from pathlib import Path
 
 import numpy as np
+from fingertip_3d import smooth_state
 from mpi4py import MPI
 
 import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
-from fingertip_dolfinx.runner import Run
 from fingertip_dolfinx.scene import load_scene
 
 #: MUMPS options (without `mat_mumps_`) per configuration. ICNTL(7): the sequential ordering
@@ -75,13 +75,7 @@ def main():
 
 def jacobian_at_smooth_state(scene, out: Path):
     """The scene's Jacobian and residual at a smooth deformed state, and a re-assembler."""
-    import dolfinx.fem.petsc  # after the package, which sets up the DOLFINx wheel
-
-    job = Run(scene, out, MPI.COMM_WORLD, resume=False, progress=False)
-    problem, nonlinear = job.problem, job.stepper.nonlinear
-    problem.u.interpolate(lambda x: np.array([0.02 * x[0], -0.05 * x[1] + 0.03 * np.sin(x[2]),
-                                              0.01 * x[2]]))
-    dolfinx.fem.petsc.assign(problem.unknowns, nonlinear.x)
+    nonlinear = smooth_state(scene, out, MPI.COMM_WORLD).stepper.nonlinear
     snes = nonlinear.solver
     J, P, (jacobian, args, kargs) = snes.getJacobian()
     b, (residual, rargs, rkargs) = snes.getFunction()

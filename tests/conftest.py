@@ -103,3 +103,31 @@ def vanishing_steps():
         return found
 
     return values
+
+
+@pytest.fixture
+def directional_error():
+    """directional_error(snes, x) -> error(ε): with the residual F and Jacobian J already
+    computed at x by the caller, d = J⁻¹F (the run's own linear solver) and
+    error(ε) = ‖(F(x + εd) − F(x − εd))/2ε − J d‖ / ‖J d‖, O(ε²) for an exact tangent."""
+    def directional(snes, x):
+        (F, _), (J, P, _) = snes.getFunction(), snes.getJacobian()
+        ksp, d, Jd = snes.getKSP(), x.duplicate(), x.duplicate()
+        ksp.setOperators(J, P)
+        ksp.solve(F, d)
+        J.mult(d, Jd)
+
+        def error(eps):
+            plus, minus, fp, fm = x.copy(), x.copy(), x.duplicate(), x.duplicate()
+            plus.axpy(eps, d)
+            minus.axpy(-eps, d)
+            snes.computeFunction(plus, fp)
+            snes.computeFunction(minus, fm)
+            fp.axpy(-1.0, fm)
+            fp.scale(0.5 / eps)
+            fp.axpy(-1.0, Jd)
+            return fp.norm() / Jd.norm()
+
+        return error
+
+    return directional

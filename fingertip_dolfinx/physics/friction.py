@@ -173,19 +173,22 @@ class CoulombFriction:
         comm = self.contact.u.function_space.mesh.comm
         return comm.allreduce(fem.assemble_scalar(self._dissipation_form), op=MPI.SUM)
 
-    @cached_property
-    def _force_forms(self) -> list[list[fem.Form]]:
-        # Contact and friction residual tested with each rigid translation e_k: the force each
-        # indenter puts on the body, pressure and friction together (as contact._force_forms).
+    def _translation_forms(self, term) -> list[list[fem.Form]]:
+        """[k][i]: −term(i, e_k), indenter i's residual term tested with the rigid translation
+        e_k: the force it puts on the body along axis k (as contact._force_forms)."""
         V = self.contact.u.function_space
         bs = V.dofmap.index_map_bs
         forms = []
         for k in range(bs):
             e_k = fem.Function(V)
             e_k.x.array.reshape(-1, bs)[:, k] = 1.0
-            forms.append([fem.form(-(self.contact._term(i, e_k) + self._term(i, e_k)))
-                          for i in range(len(self.mu))])
+            forms.append([fem.form(-term(i, e_k)) for i in range(len(self.mu))])
         return forms
+
+    @cached_property
+    def _force_forms(self) -> list[list[fem.Form]]:
+        # pressure and friction together
+        return self._translation_forms(lambda i, e: self.contact._term(i, e) + self._term(i, e))
 
     def forces(self) -> np.ndarray:
         """(indenters, gdim): the force each indenter exerts on the body, pressure and
@@ -194,14 +197,7 @@ class CoulombFriction:
 
     @cached_property
     def _pressure_forms(self) -> list[list[fem.Form]]:
-        V = self.contact.u.function_space
-        bs = V.dofmap.index_map_bs
-        forms = []
-        for k in range(bs):
-            e_k = fem.Function(V)
-            e_k.x.array.reshape(-1, bs)[:, k] = 1.0
-            forms.append([fem.form(-self.contact._term(i, e_k)) for i in range(len(self.mu))])
-        return forms
+        return self._translation_forms(self.contact._term)
 
     def pressure_forces(self) -> np.ndarray:
         """(indenters, gdim): the pressure's share of `forces()`, ∫ p n ds; the rest is the

@@ -251,15 +251,20 @@ def acuity_table(result: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _write_tables(out: Path, counts: dict, result: dict) -> None:
-    """acuity.csv (d′ per task and width), counts.csv (μ per run and site), acuity.md."""
-    with (out / "acuity.csv").open("w") as f:
-        f.write("task,width_mm,dprime," + ",".join(f"dprime_row{j}" for j in range(SAMPLING))
-                + "\n")
-        for name in ("grating", "gap"):
+def _write_dprimes(path: Path, result: dict, tasks, part: str, parts: int) -> None:
+    """acuity.csv: per task and width the d′ and that of each of its `parts` (a row offset
+    in 2D, a population in 3D; columns `part`0, `part`1, ...)."""
+    with path.open("w") as f:
+        f.write("task,width_mm,dprime," + ",".join(f"{part}{j}" for j in range(parts)) + "\n")
+        for name in tasks:
             t = result[name]
             for w, d, rows in zip(t["widths_mm"], t["dprime"], t["dprime_rows"]):
                 f.write(f"{name},{w:g},{d:.6g}," + ",".join(f"{r:.6g}" for r in rows) + "\n")
+
+
+def _write_tables(out: Path, counts: dict, result: dict) -> None:
+    """acuity.csv (d′ per task and width), counts.csv (μ per run and site), acuity.md."""
+    _write_dprimes(out / "acuity.csv", result, ("grating", "gap"), "dprime_row", SAMPLING)
     with (out / "counts.csv").open("w") as f:
         f.write("run,x_mm,expected_count\n")
         for label, (x, mu) in counts.items():
@@ -521,13 +526,8 @@ def acuity_table_3d(result: dict) -> str:
 def _write_tables_3d(out: Path, counts: dict, result: dict) -> None:
     """acuity.csv (d′ per task, width and population), counts.csv (μ per run and site with
     its x, z), acuity.md (criterion and table)."""
-    k = result["populations"]
-    with (out / "acuity.csv").open("w") as f:
-        f.write("task,width_mm,dprime," + ",".join(f"dprime_pop{j}" for j in range(k)) + "\n")
-        for name in ("orientation", "gap"):
-            t = result[name]
-            for w, d, rows in zip(t["widths_mm"], t["dprime"], t["dprime_rows"]):
-                f.write(f"{name},{w:g},{d:.6g}," + ",".join(f"{r:.6g}" for r in rows) + "\n")
+    _write_dprimes(out / "acuity.csv", result, ("orientation", "gap"), "dprime_pop",
+                   result["populations"])
     with (out / "counts.csv").open("w") as f:
         f.write("run,x_mm,z_mm,expected_count\n")
         for label, (xz, mu) in counts.items():
