@@ -9,10 +9,12 @@ The law is the scene's penalty with each indenter's gap g shifted by a frozen mu
 displacement's degree: in one cell γ is one number, so μ ← [μ − g]_+ at its nodes is exactly
 Uzawa's λ ← [λ − γ g]_+). Newton solves with μ fixed (its force is then the gradient of
 ½ ∫ γ [μ − g]_+² ds: conservative); then μ is updated, and the solve repeated, until
-max |Δμ| ≤ UZAWA_TOL (mm) or after UZAWA_MAX updates. μ is kept with the accepted state and
-restored with it after a failed attempt (the next step starts from the last step's μ). At
-convergence g ≥ 0 at the nodes (the penalty's penetration p/γ is gone), so the force is the
-exact constraint's, not the penalty's.
+the update would move μ by at most UZAWA_TOL (mm; that last update is not applied, so that the
+state and its forces are those of the μ it was solved with) or after UZAWA_MAX updates
+(UZAWA_MAX=0: one update per step, at the accepted state, a multiplier one step behind). μ is
+kept with the accepted state and restored with it after a failed attempt (the next step starts
+from the last step's μ). At convergence g ≥ 0 at the nodes (the penalty's penetration p/γ is
+gone), so the force is the exact constraint's, not the penalty's.
 
 Measured on line-load-1pct, 2026-11-26 (one rank, niced, a loaded machine: count
 factorisations; docs/benchmarks/contact-newton.md has the table): with γ0 = 100 (the scene's)
@@ -82,14 +84,18 @@ class Multiplier:
         self.update = fem.Expression(ufl.max_value(self.mu - self.gaps[0], 0.0), points)
         self.cells = contact._facet_entities[:, 0]
 
-    def step(self) -> float:
-        """μ ← [μ − g]_+; returns max |Δμ| (mm) over every rank."""
+    def step(self, apply: bool = True) -> float:
+        """μ ← [μ − g]_+ (if `apply`; else μ is left as it was: the state solved with it stays
+        consistent with it, and so do its forces); returns max |Δμ| (mm) over every rank."""
         old = self.mu.x.array.copy()
         self.mu.interpolate(self.update, cells0=self.cells)
-        self.mu.x.scatter_forward()
         comm = self.mu.function_space.mesh.comm
-        return comm.allreduce(float(np.max(np.abs(self.mu.x.array - old), initial=0.0)),
-                              op=MPI.MAX)
+        change = comm.allreduce(float(np.max(np.abs(self.mu.x.array - old), initial=0.0)),
+                                op=MPI.MAX)
+        if not apply:
+            self.mu.x.array[:] = old
+        self.mu.x.scatter_forward()
+        return change
 
 
 def install(job: Run, multiplier: Multiplier) -> None:
@@ -103,11 +109,13 @@ def install(job: Run, multiplier: Multiplier) -> None:
         while True:
             reason, its = newton()
             total += its
-            if reason <= 0:
+            if reason <= 0 or MAX == 0:
                 break
-            change, updates = multiplier.step(), updates + 1
+            change = multiplier.step(apply=False)
             if change <= TOL or updates >= MAX:
                 break
+            multiplier.step()
+            updates += 1
         if job.comm.rank == 0:
             print(f"  uzawa t = {problem.time:.6g} s: {updates} updates, {total} Newton "
                   f"iterations, last max|dmu| {change:.2e} mm", flush=True)
@@ -117,6 +125,8 @@ def install(job: Run, multiplier: Multiplier) -> None:
 
     def accepted_too():
         accept()
+        if MAX == 0:  # lagged: the accepted state's update, for the next step
+            multiplier.step()
         accepted[:] = multiplier.mu.x.array
 
     def restored_too():
