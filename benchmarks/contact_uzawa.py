@@ -18,16 +18,15 @@ gone), so the force is the exact constraint's, not the penalty's.
 
 Measured on line-load-1pct, 2026-11-26 (one rank, niced, a loaded machine: count
 factorisations; docs/benchmarks/contact-newton.md has the table): with γ0 = 100 (the scene's)
-and UZAWA_TOL 1e-5 mm, 2-4 updates per ramp step, 133 Newton iterations (107 in 15 ramp steps)
-and 122 factorisations against the penalty's 89 (72 in 14) and 83; stepping CPU 5.9 times its
-bound (penalty 4.65); force +0.21 % at 1 s, +0.20 % at 100 s (the exact constraint's answer,
-not the penalty's); penetration 0.12 µm (penalty 1.35). Each update moves the zone's edge
-again and Newton settles it again, at the same linear rate: the multiplier is ~0 there, so the
-kink inside Newton is the penalty's. A tolerance relative to max μ (1e-2) hit UZAWA_MAX at
-small loads, where μ is small and the edge's nodes toggle: 177 iterations, a cut. With
-γ0 = 10 (a soft inner law, the multiplier carrying the load) Newton fails inside the loop at
-0.24 s, steps cut to 0.4 ms. One update per step and no re-solve (UZAWA_MAX=1, the multiplier
-a step behind): 115 iterations, and the force at 1 s 24 % high: wrong.
+and UZAWA_TOL 1e-5 mm, 2-4 updates per ramp step, 139 Newton iterations (111 in 15 ramp steps)
+and 127 factorisations in 30 steps, against the penalty's 89 (72 in 14) and 83 in 28; forces
++0.21 % at 1 s, +0.23 % at 100 s (the exact constraint's answer, not the penalty's);
+penetration 0.12 µm (penalty 1.35). Each update moves the zone's edge again and Newton settles
+it again, at the same linear rate: the multiplier is ~0 there, so the kink inside Newton is
+the penalty's. UZAWA_MAX=0 (lagged): 123 iterations, 112 factorisations, forces +0.15 % and
++0.22 %, 0.38 µm. A tolerance relative to max μ (1e-2) hit UZAWA_MAX at small loads, where μ
+is small and the edge's nodes toggle: 177 iterations, a cut. With γ0 = 10 (a soft inner law,
+the multiplier carrying the load) Newton fails inside the loop at 0.24 s, steps cut to 0.4 ms.
 
     PYTHONPATH=.. python contact_uzawa.py --scene line-load-1pct [--set KEY=VALUE] [--newton]
     (environment: UZAWA_TOL=1e-5 mm, UZAWA_MAX=10)
