@@ -43,7 +43,13 @@ instead of 83 factorisations; a damped predictor 11.3; 20 µm surface elements o
 0.4 mm around the tip instead of 0.25: 131 and 106 Newton iterations instead of 89; the
 residual's own law but the Jacobian of a wider smoothing (0.3, 1 µm): fails at first touch, of
 the exact kink: 313 ramp iterations instead of 72 (docs/benchmarks/contact-newton.md has the
-table).
+table). Second round (2026-11-26, LU factorisations against today's 83 in 28 steps): the
+tangent predictor at the kinks (steps.tangent_start) the same 89 iterations and 83; at every
+step (and steps.extrapolate = false) 85 iterations, 83; the contact's facet rule at the P2
+nodes (Gauss-Lobatto) 159, 3 cuts; at degree 12 99; an augmented-Lagrangian (Uzawa) loop
+around Newton (contact_uzawa.py) 127 in 30 steps, the forces 0.2 % higher (the exact
+constraint's) and 0.12 µm of penetration; Nitsche (θ = 0, γ0 = 10) at 0.36 s of the ramp
+after 420 s.
 Tried earlier on the preset (Newton its / LU / stepping CPU over the bound): l2 and cp
 line searches 87 / 79-95 / 5.4; newtontr 100 / 109 / 5.5; quasi-Newton (L-BFGS scaled by the
 Jacobian) 262 its, 13 cuts, 5.3; Broyden: PETSc error 73; Anderson or NGMRES around one Newton

@@ -106,12 +106,12 @@ class Hertz:
             gmsh.option.setNumber(f"Mesh.{option}", 0)
 
     def block(self, domain, facet_tags, *, theta: int = 0, gamma0: float = 10.0,
-              modulus=None) -> HertzBlock:
-        """The P2 displacement, the cylinder (touching at y = 0), the contact terms with
-        γ = γ0 modulus/h (modulus: `self.modulus` unless given, e.g. a Constant to sweep γ0
-        without recompiling), the residual and the supports."""
+              modulus=None, method: str = "nitsche") -> HertzBlock:
+        """The P2 displacement, the cylinder (touching at y = 0), the contact terms (`method`,
+        contact.CONTACT_METHODS) with γ = γ0 modulus/h (modulus: `self.modulus` unless given,
+        e.g. a Constant to sweep γ0 without recompiling), the residual and the supports."""
         V, u, P, obstacle, contact, residual = _contact_on_block(
-            self, domain, facet_tags, Cylinder(radius=self.R), theta, gamma0, modulus)
+            self, domain, facet_tags, Cylinder(radius=self.R), theta, gamma0, modulus, method)
         fdim = domain.topology.dim - 1
         top = fem.locate_dofs_topological(V, fdim, facet_tags.find(self.TOP))
         side = fem.locate_dofs_topological(V.sub(0), fdim, facet_tags.find(self.SYMMETRY))
@@ -230,7 +230,8 @@ class HertzSphere(Hertz):
         return HertzSphereBlock(u, P, obstacle, contact, residual, bcs, facet_tags)
 
 
-def _contact_on_block(hertz, domain, facet_tags, indenter, theta: int, gamma0: float, modulus):
+def _contact_on_block(hertz, domain, facet_tags, indenter, theta: int, gamma0: float, modulus,
+                      method: str = "nitsche"):
     """The Hertz blocks' common part (2D and 3D): P2 displacement, `hertz.stress`, the
     indenter touching at y = 0 on the BOTTOM facets, the Nitsche terms and the residual."""
     V = fem.functionspace(domain, ("Lagrange", 2, (domain.geometry.dim,)))
@@ -240,7 +241,7 @@ def _contact_on_block(hertz, domain, facet_tags, indenter, theta: int, gamma0: f
     ds = ufl.Measure("ds", domain, subdomain_data=facet_tags)
     contact = NitscheContact(u, P, ds(hertz.BOTTOM), [obstacle],
                              modulus=hertz.modulus if modulus is None else modulus,
-                             theta=theta, gamma0=gamma0)
+                             theta=theta, gamma0=gamma0, method=method)
     residual = ufl.inner(P, ufl.grad(v)) * ufl.dx + contact.residual(v)
     return V, u, P, obstacle, contact, residual
 
