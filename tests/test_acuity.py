@@ -150,6 +150,29 @@ def test_the_oriented_gratings_are_one_grating_turned_and_span_the_contact():
     assert across.signed_distance_np(tops[1:], 0.0)[0][0] == 0.0
 
 
+def test_every_oriented_grating_from_1_mm_up_is_one_compiled_form():
+    """Widths 1, 1.5 and 2 mm in both orientations share the ridge count (the only part of a
+    grating that is the form's structure, not a Constant), and each still spans the contact."""
+    from fingertip_dolfinx.studies.acuity import GRATING_SPAN_3D, oriented_table
+
+    gratings = [shape(oriented_table(w, o, 9.0)) for w in (1.0, 1.5, 2.0)
+                for o in ("along", "across")]
+    assert len({g.ridges for g in gratings}) == 1
+    assert all((g.ridges - 1) * g.period >= GRATING_SPAN_3D for g in gratings)
+
+
+def test_the_3d_table_quotes_the_2d_study_as_it_stands():
+    """The 3D table's 2D column is the 2D study's result as shipped in docs/results/acuity."""
+    import json
+    from pathlib import Path
+
+    from fingertip_dolfinx.studies.acuity import TWO_D
+
+    shipped = Path(__file__).parents[1] / "docs" / "results" / "acuity" / "summary.json"
+    gap = json.loads(shipped.read_text())["gap"]["threshold_mm"]
+    assert TWO_D["gap"] == f"{gap:.2f}"
+
+
 def test_the_3d_jobs_press_both_orientations_and_the_gap_on_one_mesh(tmp_path):
     from fingertip_dolfinx.studies.acuity import SAMPLING_3D, study_jobs_3d, window_of
 

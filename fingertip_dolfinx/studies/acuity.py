@@ -353,6 +353,10 @@ ORIENTATIONS = {"along": "z", "across": "x"}
 #: An oriented grating spans at least this (mm): the contact of a 1 mm press covers |x| < ~4
 #: mm and the whole cylinder along z (0 to ~17 mm), around the window's middle.
 GRATING_SPAN_3D = 24.0
+#: The oriented gratings' ridge count, at least: the count spanning GRATING_SPAN_3D at 1 mm.
+#: Wider gratings keep it (and span more), so every width >= 1 mm and both orientations are
+#: one compiled contact form (a grating's numbers are Constants; its ridge count is not).
+RIDGES_3D = 13
 #: The 3D population is SAMPLING_3D² times the class's density.
 SAMPLING_3D = 2
 CRITERION_3D = (f"ideal observer of the SA1 spike counts in the refined window (Poisson, "
@@ -360,7 +364,7 @@ CRITERION_3D = (f"ideal observer of the SA1 spike counts in the refined window (
                 f"{SAMPLING_3D ** 2} random populations at the class's density; threshold "
                 f"where d' = {LEVEL:g} (linear interpolation)")
 #: The 2D study's answers (docs/results/acuity/; its grating task is the phase stand-in).
-TWO_D = {"orientation": "< 0.5 (phase A vs B)", "gap": "0.70"}
+TWO_D = {"orientation": "< 0.5 (phase A vs B)", "gap": "0.60"}
 
 
 def window_of(scene) -> tuple[float, float, float]:
@@ -371,9 +375,11 @@ def window_of(scene) -> tuple[float, float, float]:
 
 def oriented_table(width: float, orientation: str, centre_z: float) -> dict:
     """The indenter table of the grating `width` wide with its ridges `orientation` ("along"
-    or "across" the finger), a ridge centred at x = 0 (along) or z = centre_z (across)."""
-    return {**grating_table(width, "A", GRATING_SPAN_3D), "axis": ORIENTATIONS[orientation],
-            "centre_z": centre_z}
+    or "across" the finger), a ridge centred at x = 0 (along) or z = centre_z (across), with
+    at least RIDGES_3D ridges."""
+    table = grating_table(width, "A", GRATING_SPAN_3D)
+    return {**table, "ridges": max(table["ridges"], RIDGES_3D),
+            "axis": ORIENTATIONS[orientation], "centre_z": centre_z}
 
 
 def study_jobs_3d(out: Path, widths, gaps, overrides=()) -> list[tuple]:
