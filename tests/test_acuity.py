@@ -266,3 +266,18 @@ def test_a_run_is_reused_for_a_new_calibration_but_not_for_other_sites(tmp_path)
     assert not ran_with(quantity="strain_energy_density")
     (run / "receptors.json").unlink()
     assert not same_sites(run, sites)
+
+
+@pytest.mark.parametrize("argv, gaps", [([], (1.0,)), (["--gaps"], []), (["--gaps", "1.5"], [1.5])])
+def test_the_3d_command_runs_the_orientation_task_alone_when_given_no_gap(
+        tmp_path, monkeypatch, argv, gaps):
+    """`--3d --gaps` with no value asks for no gap runs (the orientation pair only)."""
+    from fingertip_dolfinx import cli
+    from fingertip_dolfinx.studies import acuity
+
+    asked = {}
+    monkeypatch.setattr(acuity, "run_acuity_3d", lambda out, widths, gaps, *a, **k: asked.update(
+        widths=widths, gaps=gaps) or {"criterion": "-"})
+    monkeypatch.setattr(acuity, "acuity_table_3d", lambda result: "")
+    assert cli.main(["study", "acuity", "--3d", *argv, "--out", str(tmp_path)]) == 0
+    assert asked == {"widths": acuity.WIDTHS_3D, "gaps": gaps}
