@@ -281,3 +281,22 @@ def test_the_3d_command_runs_the_orientation_task_alone_when_given_no_gap(
     monkeypatch.setattr(acuity, "acuity_table_3d", lambda result: "")
     assert cli.main(["study", "acuity", "--3d", *argv, "--out", str(tmp_path)]) == 0
     assert asked == {"widths": acuity.WIDTHS_3D, "gaps": gaps}
+
+
+def test_the_3d_figure_has_a_row_per_task_that_ran(tmp_path):
+    """Without the gap runs (`--gaps` with no value) the figure is the orientation row alone,
+    not a row of empty panels."""
+    from matplotlib.image import imread
+
+    from fingertip_dolfinx.studies.acuity import plot_acuity_3d, summarise_3d
+
+    xz = np.column_stack((np.linspace(-3, 3, 30), np.linspace(1, 17, 30)))
+    counts = {k: (xz, np.cos(xz[:, i]) + 1.0) for i, k in enumerate(
+        ("orientation-w1-along", "orientation-w1-across", "gap-g0", "gap-g1"))}
+    heights = []
+    for gaps in ((1.0,), ()):
+        runs = {k: v for k, v in counts.items() if gaps or not k.startswith("gap")}
+        plot_acuity_3d(summarise_3d(runs, (1.0,), gaps, (3.0, 0.5, 17.5)), runs,
+                       tmp_path / "acuity.png")
+        heights.append(imread(tmp_path / "acuity.png").shape[0])
+    assert heights[1] < 0.6 * heights[0]

@@ -545,21 +545,24 @@ def _write_tables_3d(out: Path, counts: dict, result: dict) -> None:
 def plot_acuity_3d(result: dict, counts: dict, path: Path) -> None:
     """The expected counts of the window's sites over the surface (x across, z along the
     finger; both halves) for the grating along and across the finger and the bar without and
-    with a gap (each pair on one colour scale), and d′ against width per task."""
+    with a gap (each pair on one colour scale), and d′ against width per task; a task that
+    was not run (`--gaps` with no value) has no row."""
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(12.5, 7.6), layout="constrained")
-    axes = fig.subplots(2, 3)
     w = min(result["orientation"]["widths_mm"] or [1.0], key=lambda v: abs(v - 1.0))
     g = min(result["gap"]["widths_mm"] or [1.0], key=lambda v: abs(v - 1.0))
     rows = ((f"orientation-w{w:g}-along", f"{w:g} mm grating, ridges along the finger"),
             (f"orientation-w{w:g}-across", f"{w:g} mm grating, ridges across the finger")), (
            ("gap-g0", f"{result['gap_bar_mm']:g} mm bar along the finger, no gap"),
            (f"gap-g{g:g}", f"the same bar with a {g:g} mm gap"))
+    rows = [pair for pair in rows if pair[0][0] in counts] or rows[:1]
+    fig = Figure(figsize=(12.5, 0.6 + 3.5 * len(rows)), layout="constrained")
+    axes = fig.subplots(len(rows), 3, squeeze=False)
     for panels, pair in zip(axes[:, :2], rows):
         _surface_counts(fig, panels, counts, pair)
     _dprime_panel(axes[0, 2], result)
-    axes[1, 2].set_axis_off()
+    for ax in axes[1:, 2]:
+        ax.set_axis_off()
     fig.savefig(path, dpi=150)
 
 
