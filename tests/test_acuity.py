@@ -291,7 +291,7 @@ def test_the_3d_figure_has_a_row_per_task_that_ran(tmp_path):
     from fingertip_dolfinx.studies.acuity import plot_acuity_3d, summarise_3d
 
     xz = np.column_stack((np.linspace(-3, 3, 30), np.linspace(1, 17, 30)))
-    counts = {k: (xz, np.cos(xz[:, i]) + 1.0) for i, k in enumerate(
+    counts = {k: (xz, np.cos(xz[:, i % 2] * (i + 1)) + 1.0) for i, k in enumerate(
         ("orientation-w1-along", "orientation-w1-across", "gap-g0", "gap-g1"))}
     heights = []
     for gaps in ((1.0,), ()):
