@@ -300,3 +300,18 @@ def test_the_3d_figure_has_a_row_per_task_that_ran(tmp_path):
                        tmp_path / "acuity.png")
         heights.append(imread(tmp_path / "acuity.png").shape[0])
     assert heights[1] < 0.6 * heights[0]
+
+
+def test_counts_up_to_a_time_are_the_counts_of_the_samples_up_to_it():
+    """`until` counts a run's spikes over 0..until only: the same as the samples cut there, and
+    never more than over the whole run (a pair read before its end is compared over the time
+    both reached)."""
+    from fingertip_dolfinx.studies.acuity import fit_mean_counts
+
+    sa1 = load_receptors("calibrated")["SA1"]
+    time = np.linspace(0.0, 1.0, 101)
+    stimulus = np.column_stack([np.minimum(time / 0.1, 1.0) * s for s in (2e-3, 5e-3, 1e-2)])
+    part = fit_mean_counts(sa1, time, stimulus, until=0.3)
+    assert np.array_equal(part, fit_mean_counts(sa1, time[:31], stimulus[:31]))
+    whole = fit_mean_counts(sa1, time, stimulus)
+    assert np.all(part <= whole) and np.any(part < whole) and part[-1] > 0

@@ -153,11 +153,15 @@ def expected_counts(run_dir, population) -> tuple[np.ndarray, np.ndarray]:
                                                     responses.stimulus[:, sa1][:, order])
 
 
-def fit_mean_counts(c, time, stimulus) -> np.ndarray:
+def fit_mean_counts(c, time, stimulus, until: float | None = None) -> np.ndarray:
     """Per site (columns of `stimulus`, sampled at `time`) the mean over the class's fits of
-    each fit's spike count over the whole run, every fit driven by the site's samples."""
+    each fit's spike count over the whole run (or over 0 to `until` s: the samples up to it),
+    every fit driven by the site's samples."""
     from ..afferents.receptors import saal_spikes
 
+    if until is not None:
+        keep = np.asarray(time) <= until
+        time, stimulus = np.asarray(time)[keep], stimulus[keep]
     fits = list(range(len(c.saal.fits)))
     drives = np.repeat(stimulus.T, len(fits), axis=0)  # each site once per fit
     trains = saal_spikes(c, fits * stimulus.shape[1], time, drives)
@@ -438,10 +442,12 @@ def same_sites(where: Path, sites: Path) -> bool:
                     for c in classes))
 
 
-def expected_counts_3d(run_dir, population, window) -> tuple[np.ndarray, np.ndarray]:
+def expected_counts_3d(run_dir, population, window,
+                       until: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """((x, z) of each SA1 site inside the window, μ): the sites in their population's order
     (x < 0: a site on the mirrored half), μ the mean over the class's fits of the spike count
-    over the whole run (`fit_mean_counts`)."""
+    over the whole run, or over 0 to `until` s (`fit_mean_counts`; a run read before its end
+    counts over the time both runs of a pair reached)."""
     from ..afferents.receptors import afferent_responses
     from ..result import Result
 
@@ -453,7 +459,8 @@ def expected_counts_3d(run_dir, population, window) -> tuple[np.ndarray, np.ndar
     x, z = responses.x[sa1], np.array([z_of[i] for i in responses.index[sa1].tolist()])
     half_width, z_min, z_max = window
     inside = (np.abs(x) < half_width) & (z > z_min) & (z < z_max)
-    mu = fit_mean_counts(population["SA1"], responses.time, responses.stimulus[:, sa1[inside]])
+    mu = fit_mean_counts(population["SA1"], responses.time, responses.stimulus[:, sa1[inside]],
+                         until)
     return np.column_stack((x[inside], z[inside])), mu
 
 
