@@ -315,3 +315,17 @@ def test_counts_up_to_a_time_are_the_counts_of_the_samples_up_to_it():
     assert np.array_equal(part, fit_mean_counts(sa1, time[:31], stimulus[:31]))
     whole = fit_mean_counts(sa1, time, stimulus)
     assert np.all(part <= whole) and np.any(part < whole) and part[-1] > 0
+
+
+def test_runs_read_before_their_end_are_refused_past_the_time_they_reached(tmp_path):
+    """`count_acuity_3d(..., until=T)` compares a pair over 0..T: a run that stopped before T
+    would count over a shorter stimulus, so the study names the runs and the latest T."""
+    from fingertip_dolfinx.errors import InputError
+    from fingertip_dolfinx.studies.acuity import count_acuity_3d, study_jobs_3d
+
+    for label, _, where in study_jobs_3d(tmp_path, (1.0,), ()):
+        where.mkdir()
+        last = 0.15 if label.endswith("along") else 0.12
+        (where / "history.csv").write_text(f"time_s,newton_iterations\n0.1,4\n{last},3\n")
+    with pytest.raises(InputError, match=r"until.*0\.2 s is later.*use until <= 0\.12"):
+        count_acuity_3d(tmp_path, (1.0,), (), until=0.2)

@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
+from ..errors import InputError
 from ..outputs import write_json
 from .sweep import population_threshold
 
@@ -469,7 +470,6 @@ def run_acuity_3d(out, widths=WIDTHS_3D, gaps=GAPS_3D, overrides=(),
     """Run every 3D stimulus not already finished in `out` (side by side under MPI), then the
     d′ of each task and width and the thresholds: out/acuity.csv, counts.csv (μ per run and
     site), summary.json, acuity.md and acuity.png. Returns the summary (on every rank)."""
-    from ..afferents.receptors import load_receptors
     from ..runner import run_side_by_side
 
     out = Path(out)
@@ -479,16 +479,40 @@ def run_acuity_3d(out, widths=WIDTHS_3D, gaps=GAPS_3D, overrides=(),
     run_side_by_side(todo, progress=progress)
     result = None
     if MPI.COMM_WORLD.rank == 0:
-        population = load_receptors(out / "sa1-row.toml")
-        window = window_of(jobs[0][1])
-        counts = {label: expected_counts_3d(where, population, window)
-                  for label, _, where in jobs}
-        result = summarise_3d(counts, widths, gaps, window)
-        result["runs"] = {label: run_cost(where) for label, _, where in jobs}
-        _write_tables_3d(out, counts, result)
-        plot_acuity_3d(result, counts, out / "acuity.png")
+        result = count_acuity_3d(out, widths, gaps, overrides)
     result = MPI.COMM_WORLD.bcast(result, root=0)
     write_json(out / "summary.json", result, MPI.COMM_WORLD)
+    return result
+
+
+def count_acuity_3d(out, widths=WIDTHS_3D, gaps=GAPS_3D, overrides=(),
+                    until: float | None = None) -> dict:
+    """The 3D tasks' d′ from the runs in `out` as they stand, running nothing (one rank):
+    counts over each finished run, or, given `until` (s), over 0 to `until` of runs read
+    before their end (every run must have reached it). Writes the study's files into `out`."""
+    from ..afferents.receptors import load_receptors
+    from ..outputs import read_csv
+
+    out = Path(out)
+    jobs = study_jobs_3d(out, widths, gaps, overrides)
+    if until is not None:
+        reached = {label: float(read_csv(where / "history.csv")["time_s"][-1])
+                   for label, _, where in jobs}
+        short = {label: t for label, t in reached.items() if t < until}
+        if short:
+            raise InputError("acuity 3D: until", f"{until:g} s is later than the runs "
+                             f"reached: {short}.", f"use until <= {min(reached.values()):g}.")
+    population = load_receptors(out / "sa1-row.toml")
+    window = window_of(jobs[0][1])
+    counts = {label: expected_counts_3d(where, population, window, until)
+              for label, _, where in jobs}
+    result = summarise_3d(counts, widths, gaps, window)
+    if until is None:
+        result["runs"] = {label: run_cost(where) for label, _, where in jobs}
+    else:
+        result["counted_until_s"], result["reached_s"] = until, reached
+    _write_tables_3d(out, counts, result)
+    plot_acuity_3d(result, counts, out / "acuity.png")
     return result
 
 
