@@ -589,15 +589,17 @@ def plot_acuity_3d(result: dict, counts: dict, path: Path) -> None:
     rows = [pair for pair in rows if pair[0][0] in counts] or rows[:1]
     fig = Figure(figsize=(12.5, 0.6 + 3.5 * len(rows)), layout="constrained")
     axes = fig.subplots(len(rows), 3, squeeze=False)
+    until = result.get("counted_until_s")
+    label = "expected SA1 spikes " + (f"over 0–{until:.3g} s" if until else "in the run")
     for panels, pair in zip(axes[:, :2], rows):
-        _surface_counts(fig, panels, counts, pair)
+        _surface_counts(fig, panels, counts, pair, label)
     _dprime_panel(axes[0, 2], result)
     for ax in axes[1:, 2]:
         ax.set_axis_off()
     fig.savefig(path, dpi=150)
 
 
-def _surface_counts(fig, panels, counts: dict, pair) -> None:
+def _surface_counts(fig, panels, counts: dict, pair, label: str) -> None:
     """Two runs' expected counts at their sites, on one colour scale."""
     present = [(label, title) for label, title in pair if label in counts]
     top = max([counts[label][1].max() for label, _ in present] + [1.0])
@@ -608,7 +610,7 @@ def _surface_counts(fig, panels, counts: dict, pair) -> None:
                title=title, aspect="equal")
         ax.title.set_fontsize(9)
     if present:
-        fig.colorbar(dots, ax=list(panels), label="expected SA1 spikes in the run", shrink=0.8)
+        fig.colorbar(dots, ax=list(panels), label=label, shrink=0.8)
 
 
 def _dprime_panel(ax, result: dict) -> None:
