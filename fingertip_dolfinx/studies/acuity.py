@@ -599,7 +599,7 @@ def plot_acuity_3d(result: dict, counts: dict, path: Path) -> None:
     fig.savefig(path, dpi=150)
 
 
-def _surface_counts(fig, panels, counts: dict, pair, label: str) -> None:
+def _surface_counts(fig, panels, counts: dict, pair, bar_label: str) -> None:
     """Two runs' expected counts at their sites, on one colour scale."""
     present = [(label, title) for label, title in pair if label in counts]
     top = max([counts[label][1].max() for label, _ in present] + [1.0])
@@ -610,7 +610,7 @@ def _surface_counts(fig, panels, counts: dict, pair, label: str) -> None:
                title=title, aspect="equal")
         ax.title.set_fontsize(9)
     if present:
-        fig.colorbar(dots, ax=list(panels), label=label, shrink=0.8)
+        fig.colorbar(dots, ax=list(panels), label=bar_label, shrink=0.8)
 
 
 def _dprime_panel(ax, result: dict) -> None:
