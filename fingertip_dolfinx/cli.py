@@ -178,8 +178,9 @@ def _add_study(subparsers) -> None:
     p.add_argument("--widths", type=float, nargs="+", metavar="W", default=None,
                    help="acuity: ridge (= groove) widths of the gratings in mm (default "
                    "0.5 0.75 1 1.5 2)")
-    p.add_argument("--gaps", type=float, nargs="+", metavar="G", default=None,
-                   help="acuity: gaps in the 4 mm bar in mm (default 0.5 1 1.5 2; --3d: 1)")
+    p.add_argument("--gaps", type=float, nargs="*", metavar="G", default=None,
+                   help="acuity: gaps in the 4 mm bar in mm (default 0.5 1 1.5 2; --3d: 1; "
+                   "--3d --gaps with no value: the orientation task only)")
     p.add_argument("--3d", dest="three_d", action="store_true",
                    help="acuity: on the 3D fingertip (scene grating-3d): the grating along "
                    "vs across the finger and the gap, one run at a time per rank group "
@@ -232,8 +233,9 @@ def _run_acuity(args) -> int:
     from .studies import acuity
 
     if args.three_d:
+        gaps = acuity.GAPS_3D if args.gaps is None else args.gaps
         result = acuity.run_acuity_3d(args.out, args.widths or acuity.WIDTHS_3D,
-                                      args.gaps or acuity.GAPS_3D, _scene_overrides(args),
+                                      gaps, _scene_overrides(args),
                                       progress=not args.quiet)
         _rank0_print(f"Criterion: {result['criterion']}.\n")
         _rank0_print(acuity.acuity_table_3d(result))

@@ -82,8 +82,11 @@ TIP_SAMPLES = 9
 #: The tags a fingertip mesh must carry.
 REQUIRED_TAGS = (*REGIONS, "pulp_surface", "nail_centre")
 DEFAULT_OPTIONS = ModelOptions()
-#: See `FingertipProblem.jit_options`.
-JIT_OPTIONS_3D = {"cffi_extra_compile_args": ["-O1", "-g0"]}
+#: See `FingertipProblem.jit_options`. `timeout` (s): how long a process waits for a form that
+#: another one is compiling (FFCx's default, 10 s, is far shorter than a 3D compile: two runs
+#: of the 3D acuity study side by side on a cold cache, one per rank, had the second give up
+#: and wait in a collective until the first rank's runs ended); as the container's setting.
+JIT_OPTIONS_3D = {"cffi_extra_compile_args": ["-O1", "-g0"], "timeout": 1800}
 
 
 def _check_inputs(fmesh: FingertipMesh, indenters: Sequence[Indenter]) -> None:

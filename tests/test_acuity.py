@@ -150,6 +150,29 @@ def test_the_oriented_gratings_are_one_grating_turned_and_span_the_contact():
     assert across.signed_distance_np(tops[1:], 0.0)[0][0] == 0.0
 
 
+def test_every_oriented_grating_from_1_mm_up_is_one_compiled_form():
+    """Widths 1, 1.5 and 2 mm in both orientations share the ridge count (the only part of a
+    grating that is the form's structure, not a Constant), and each still spans the contact."""
+    from fingertip_dolfinx.studies.acuity import GRATING_SPAN_3D, oriented_table
+
+    gratings = [shape(oriented_table(w, o, 9.0)) for w in (1.0, 1.5, 2.0)
+                for o in ("along", "across")]
+    assert len({g.ridges for g in gratings}) == 1
+    assert all((g.ridges - 1) * g.period >= GRATING_SPAN_3D for g in gratings)
+
+
+def test_the_3d_table_quotes_the_2d_study_as_it_stands():
+    """The 3D table's 2D column is the 2D study's result as shipped in docs/results/acuity."""
+    import json
+    from pathlib import Path
+
+    from fingertip_dolfinx.studies.acuity import TWO_D
+
+    shipped = Path(__file__).parents[1] / "docs" / "results" / "acuity" / "summary.json"
+    gap = json.loads(shipped.read_text())["gap"]["threshold_mm"]
+    assert TWO_D["gap"] == f"{gap:.2f}"
+
+
 def test_the_3d_jobs_press_both_orientations_and_the_gap_on_one_mesh(tmp_path):
     from fingertip_dolfinx.studies.acuity import SAMPLING_3D, study_jobs_3d, window_of
 
@@ -243,3 +266,66 @@ def test_a_run_is_reused_for_a_new_calibration_but_not_for_other_sites(tmp_path)
     assert not ran_with(quantity="strain_energy_density")
     (run / "receptors.json").unlink()
     assert not same_sites(run, sites)
+
+
+@pytest.mark.parametrize("argv, gaps", [([], (1.0,)), (["--gaps"], []), (["--gaps", "1.5"], [1.5])])
+def test_the_3d_command_runs_the_orientation_task_alone_when_given_no_gap(
+        tmp_path, monkeypatch, argv, gaps):
+    """`--3d --gaps` with no value asks for no gap runs (the orientation pair only)."""
+    from fingertip_dolfinx import cli
+    from fingertip_dolfinx.studies import acuity
+
+    asked = {}
+    monkeypatch.setattr(acuity, "run_acuity_3d", lambda out, widths, gaps, *a, **k: asked.update(
+        widths=widths, gaps=gaps) or {"criterion": "-"})
+    monkeypatch.setattr(acuity, "acuity_table_3d", lambda result: "")
+    assert cli.main(["study", "acuity", "--3d", *argv, "--out", str(tmp_path)]) == 0
+    assert asked == {"widths": acuity.WIDTHS_3D, "gaps": gaps}
+
+
+def test_the_3d_figure_has_a_row_per_task_that_ran(tmp_path):
+    """Without the gap runs (`--gaps` with no value) the figure is the orientation row alone,
+    not a row of empty panels."""
+    from matplotlib.image import imread
+
+    from fingertip_dolfinx.studies.acuity import plot_acuity_3d, summarise_3d
+
+    xz = np.column_stack((np.linspace(-3, 3, 30), np.linspace(1, 17, 30)))
+    counts = {k: (xz, np.cos(xz[:, i % 2] * (i + 1)) + 1.0) for i, k in enumerate(
+        ("orientation-w1-along", "orientation-w1-across", "gap-g0", "gap-g1"))}
+    heights = []
+    for gaps in ((1.0,), ()):
+        runs = {k: v for k, v in counts.items() if gaps or not k.startswith("gap")}
+        plot_acuity_3d(summarise_3d(runs, (1.0,), gaps, (3.0, 0.5, 17.5)), runs,
+                       tmp_path / "acuity.png")
+        heights.append(imread(tmp_path / "acuity.png").shape[0])
+    assert heights[1] < 0.6 * heights[0]
+
+
+def test_counts_up_to_a_time_are_the_counts_of_the_samples_up_to_it():
+    """`until` counts a run's spikes over 0..until only: the same as the samples cut there, and
+    never more than over the whole run (a pair read before its end is compared over the time
+    both reached)."""
+    from fingertip_dolfinx.studies.acuity import fit_mean_counts
+
+    sa1 = load_receptors("calibrated")["SA1"]
+    time = np.linspace(0.0, 1.0, 101)
+    stimulus = np.column_stack([np.minimum(time / 0.1, 1.0) * s for s in (2e-3, 5e-3, 1e-2)])
+    part = fit_mean_counts(sa1, time, stimulus, until=0.3)
+    assert np.array_equal(part, fit_mean_counts(sa1, time[:31], stimulus[:31]))
+    whole = fit_mean_counts(sa1, time, stimulus)
+    assert np.all(part <= whole) and np.any(part < whole) and part[-1] > 0
+
+
+def test_runs_read_before_their_end_are_refused_past_the_time_they_reached(tmp_path):
+    """`count_acuity_3d(..., until=T)` compares a pair over 0..T: a run that stopped before T
+    would count over a shorter stimulus, so the study names the runs and the latest T."""
+    from fingertip_dolfinx.errors import InputError
+    from fingertip_dolfinx.studies.acuity import count_acuity_3d, study_jobs_3d
+
+    for label, _, where in study_jobs_3d(tmp_path, (1.0,), ()):
+        where.mkdir()
+        last = 0.15 if label.endswith("along") else 0.12
+        (where / "history.csv").write_text(f"time_s,newton_iterations\n0.1,4\n{last},3\n")
+    with pytest.raises(InputError, match=r"until.*0\.2 s is later.*use until <= 0\.12"):
+        count_acuity_3d(tmp_path, (1.0,), (), until=0.2)

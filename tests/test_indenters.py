@@ -405,6 +405,34 @@ def test_shifting_a_prism_moves_it_across_its_edge():
                        across.signed_distance_np(points, Y_TIP)[0], rtol=0, atol=1e-14)
 
 
+def test_gratings_of_any_width_and_orientation_share_one_compiled_form():
+    """A grating's numbers (width, period, centres, corners) and its orientation are
+    Constants in the form: two gratings with the same ridge count have the same form signature
+    (FFCx's cache key, so the second reuses the first's compiled code), and each form still
+    evaluates its own grating's exact distance. The ridge count is the form's structure."""
+    domain = create_box(MPI.COMM_WORLD, [[-3.0, -2.0, 6.0], [3.0, 0.5, 12.0]], [3, 2, 3])
+    u = fem.Function(fem.functionspace(domain, ("Lagrange", 2, (3,))))
+    u.interpolate(lambda x: np.vstack((0.05 * np.sin(x[1]), 0.1 * x[0] * x[1], 0.07 * x[0])))
+    x = ufl.SpatialCoordinate(domain) + u
+    along = dataclasses.replace(GRATING_3D, ridges=13)
+    across = dataclasses.replace(along, width=1.5, period=3.0, axis="x", centre_z=8.0)
+    fewer = dataclasses.replace(across, ridges=9)
+    forms = [shape.signed_distance(x, fem.Constant(domain, Y_TIP))[0] * ufl.ds
+             for shape in (along, across, fewer)]
+    assert forms[0].signature() == forms[1].signature() != forms[2].signature()
+    points = np.array([[0.25, 0.25, 0.25], [0.1, 0.2, 0.3], [0.6, 0.2, 0.1]])
+    cells = np.arange(domain.topology.index_map(3).size_local, dtype=np.int32)
+    for shape in (along, across):
+        phi, n = shape.signed_distance(x, fem.Constant(domain, Y_TIP))
+        expr = fem.Expression(ufl.as_vector((x[0], x[1], x[2], phi, *n)), points)
+        values = expr.eval(domain, cells).reshape(-1, 7)
+        phi_np, n_np = shape.signed_distance_np(values[:, :3], Y_TIP)
+        assert np.allclose(values[:, 3], phi_np, rtol=0, atol=1e-13)
+        assert np.allclose(values[:, 4:], n_np, rtol=0, atol=1e-12)
+    assert not np.allclose(*(s.signed_distance_np(values[:, :3], Y_TIP)[0]
+                             for s in (along, across)))  # the two differ where evaluated
+
+
 @pytest.mark.parametrize(
     "data, message",
     [

@@ -28,6 +28,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 import ufl
+from dolfinx import fem
 
 from ..datafiles import builtin_dir, find, read_toml
 from ..errors import InputError
@@ -44,10 +45,21 @@ class _Ops:
     sqrt: Callable
     abs: Callable
     sign: Callable
+    #: A shape's number (a size, a position) as the backend holds it: the float itself, or in
+    #: a form a `fem.Constant` holding it (`_ufl_ops`), for the shapes that read their numbers
+    #: through it (Grating): one compiled form then serves every width and orientation.
+    number: Callable = float
 
 
 _NUMPY = _Ops(np.where, np.sqrt, np.abs, np.sign)
 _UFL = _Ops(ufl.conditional, ufl.sqrt, abs, ufl.sign)
+
+
+def _ufl_ops(x) -> _Ops:
+    """The UFL backend whose numbers are Constants on the mesh of the expression `x`: their
+    values are runtime data, not part of the form's signature (so not of its compiled code)."""
+    domain = ufl.domain.extract_unique_domain(x)
+    return dataclasses.replace(_UFL, number=lambda v: fem.Constant(domain, float(v)))
 
 
 #: Prism directions: "z" along the finger (the plane-strain line load), "x" across it.
@@ -105,8 +117,9 @@ class Indenter:
         """UFL (φ, n) at the current position `x` (a UFL 2- or 3-vector, e.g. X + u).
 
         `y_tip` is a `fem.Constant` (or a number): moving the indenter never recompiles a form.
+        The numbers a shape reads through `_Ops.number` are Constants too.
         """
-        phi, n = self._field([x[i] for i in range(x.ufl_shape[0])], y_tip, _UFL)
+        phi, n = self._field([x[i] for i in range(x.ufl_shape[0])], y_tip, _ufl_ops(x))
         return phi, ufl.as_vector(n)
 
     def signed_distance_np(self, points, y_tip: float) -> tuple[np.ndarray, np.ndarray]:
@@ -129,6 +142,9 @@ class _Prism(Indenter):
     """A 2D profile (`_distance` in its own plane) extruded along `axis` in 3D."""
 
     axis: str = "z"  # 3D: the prism's axis, "z" along the finger or "x" across it
+    #: Whether the orientation is a number (`_Ops.number`) in the formula rather than a branch
+    #: of it: then both orientations are one compiled form.
+    _axis_as_number: ClassVar[bool] = False
 
     def __post_init__(self):
         super().__post_init__()
@@ -147,6 +163,8 @@ class _Prism(Indenter):
             phi, na, ny = self._distance(coords[0], coords[1], y_tip, ops)
             return phi, [na, ny]
         x, y, z = coords
+        if self._axis_as_number:
+            return self._blended_field(x, y, z, y_tip, ops)
         zero = 0.0 * x
         if self.axis == "z":
             phi, na, ny = self._distance(x, y, y_tip, ops)
@@ -155,6 +173,15 @@ class _Prism(Indenter):
         # `_distance` expects it (relative to centre_x).
         phi, na, ny = self._distance(z - self.centre_z + self.centre_x, y, y_tip, ops)
         return phi, [zero, ny, na]
+
+    def _blended_field(self, x, y, z, y_tip, ops):
+        """The two orientations as one formula: s = 0 ("z") or 1 ("x") blends the profile's
+        horizontal coordinate, x or centre_x + z − centre_z, and its normal's components. With
+        s exactly 0 or 1 every product is by 0 or 1, so the values are the branches' own."""
+        s = ops.number(self.axis == "x")
+        h = (1 - s) * x + s * (z - ops.number(self.centre_z) + ops.number(self.centre_x))
+        phi, na, ny = self._distance(h, y, y_tip, ops)
+        return phi, [(1 - s) * na, ny, s * na]
 
     def shifted(self, distance: float) -> _Prism:
         """The same prism moved `distance` mm across its edge: along x for a "z" prism, along z
@@ -352,6 +379,9 @@ class Grating(_Prism):
     corner_radius: float  # mm: the rounded top corners
     depth: float = math.inf  # mm: ridge top to groove floor (inf: the flanks run down)
     shape: ClassVar[str] = "grating"
+    #: Every number of the grating (and its orientation) is an `_Ops.number`: gratings with
+    #: the same ridge count and floor or none share one compiled contact form (acuity study).
+    _axis_as_number: ClassVar[bool] = True
 
     def __post_init__(self):
         super().__post_init__()
@@ -384,12 +414,14 @@ class Grating(_Prism):
         return tuple(float(c) for c in self.centre_x + self.centres())
 
     def _distance(self, px, py, y_tip, ops):
-        r, a = self.corner_radius, self.width / 2 - self.corner_radius
-        u = px - self.centre_x
-        last = float(self.centres()[-1])
+        number = ops.number  # the same floats as numbers or Constants: the same arithmetic
+        r, a = number(self.corner_radius), number(self.width / 2 - self.corner_radius)
+        u = px - number(self.centre_x)
+        last = number(self.centres()[-1])
         q = ops.where(u > 0, u - last, u + last)  # beyond the ends: the outermost ridge
-        for c in self.centres()[1:-1]:  # <=: midway between two ridges, either is nearest
-            q = ops.where(ops.abs(u - float(c)) <= self.period / 2, u - float(c), q)
+        half = number(self.period / 2)
+        for c in map(number, self.centres()[1:-1]):  # <=: midway, either ridge is nearest
+            q = ops.where(ops.abs(u - c) <= half, u - c, q)
         side, dx, dy = ops.sign(q), ops.abs(q) - a, py - (y_tip - r)
         corner = ops.sqrt(dx * dx + dy * dy)
         # Four parts of the core's distance: its corner (dx, dy > 0), its side (dx > dy), its
@@ -400,7 +432,7 @@ class Grating(_Prism):
         ny = ops.where(dx > 0, ops.where(dy > 0, dy / corner, 0.0), ops.where(dy > dx, 1.0, 0.0))
         if math.isinf(self.depth):
             return phi, nx, ny
-        floor = py - (y_tip - self.depth)  # the half-space below the grooves' floor
+        floor = py - (y_tip - number(self.depth))  # the half-space below the grooves' floor
         below = floor < phi
         return (ops.where(below, floor, phi), ops.where(below, 0.0 * px, nx),
                 ops.where(below, 0.0 * px + 1.0, ny))

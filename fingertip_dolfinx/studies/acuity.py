@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
+from ..errors import InputError
 from ..outputs import write_json
 from .sweep import population_threshold
 
@@ -153,11 +154,15 @@ def expected_counts(run_dir, population) -> tuple[np.ndarray, np.ndarray]:
                                                     responses.stimulus[:, sa1][:, order])
 
 
-def fit_mean_counts(c, time, stimulus) -> np.ndarray:
+def fit_mean_counts(c, time, stimulus, until: float | None = None) -> np.ndarray:
     """Per site (columns of `stimulus`, sampled at `time`) the mean over the class's fits of
-    each fit's spike count over the whole run, every fit driven by the site's samples."""
+    each fit's spike count over the whole run (or over 0 to `until` s: the samples up to it),
+    every fit driven by the site's samples."""
     from ..afferents.receptors import saal_spikes
 
+    if until is not None:
+        keep = np.asarray(time) <= until
+        time, stimulus = np.asarray(time)[keep], stimulus[keep]
     fits = list(range(len(c.saal.fits)))
     drives = np.repeat(stimulus.T, len(fits), axis=0)  # each site once per fit
     trains = saal_spikes(c, fits * stimulus.shape[1], time, drives)
@@ -353,6 +358,10 @@ ORIENTATIONS = {"along": "z", "across": "x"}
 #: An oriented grating spans at least this (mm): the contact of a 1 mm press covers |x| < ~4
 #: mm and the whole cylinder along z (0 to ~17 mm), around the window's middle.
 GRATING_SPAN_3D = 24.0
+#: The oriented gratings' ridge count, at least: the count spanning GRATING_SPAN_3D at 1 mm.
+#: Wider gratings keep it (and span more), so every width >= 1 mm and both orientations are
+#: one compiled contact form (a grating's numbers are Constants; its ridge count is not).
+RIDGES_3D = 13
 #: The 3D population is SAMPLING_3D² times the class's density.
 SAMPLING_3D = 2
 CRITERION_3D = (f"ideal observer of the SA1 spike counts in the refined window (Poisson, "
@@ -360,7 +369,7 @@ CRITERION_3D = (f"ideal observer of the SA1 spike counts in the refined window (
                 f"{SAMPLING_3D ** 2} random populations at the class's density; threshold "
                 f"where d' = {LEVEL:g} (linear interpolation)")
 #: The 2D study's answers (docs/results/acuity/; its grating task is the phase stand-in).
-TWO_D = {"orientation": "< 0.5 (phase A vs B)", "gap": "0.70"}
+TWO_D = {"orientation": "< 0.5 (phase A vs B)", "gap": "0.60"}
 
 
 def window_of(scene) -> tuple[float, float, float]:
@@ -371,9 +380,11 @@ def window_of(scene) -> tuple[float, float, float]:
 
 def oriented_table(width: float, orientation: str, centre_z: float) -> dict:
     """The indenter table of the grating `width` wide with its ridges `orientation` ("along"
-    or "across" the finger), a ridge centred at x = 0 (along) or z = centre_z (across)."""
-    return {**grating_table(width, "A", GRATING_SPAN_3D), "axis": ORIENTATIONS[orientation],
-            "centre_z": centre_z}
+    or "across" the finger), a ridge centred at x = 0 (along) or z = centre_z (across), with
+    at least RIDGES_3D ridges."""
+    table = grating_table(width, "A", GRATING_SPAN_3D)
+    return {**table, "ridges": max(table["ridges"], RIDGES_3D),
+            "axis": ORIENTATIONS[orientation], "centre_z": centre_z}
 
 
 def study_jobs_3d(out: Path, widths, gaps, overrides=()) -> list[tuple]:
@@ -432,10 +443,12 @@ def same_sites(where: Path, sites: Path) -> bool:
                     for c in classes))
 
 
-def expected_counts_3d(run_dir, population, window) -> tuple[np.ndarray, np.ndarray]:
+def expected_counts_3d(run_dir, population, window,
+                       until: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """((x, z) of each SA1 site inside the window, μ): the sites in their population's order
     (x < 0: a site on the mirrored half), μ the mean over the class's fits of the spike count
-    over the whole run (`fit_mean_counts`)."""
+    over the whole run, or over 0 to `until` s (`fit_mean_counts`; a run read before its end
+    counts over the time both runs of a pair reached)."""
     from ..afferents.receptors import afferent_responses
     from ..result import Result
 
@@ -447,7 +460,8 @@ def expected_counts_3d(run_dir, population, window) -> tuple[np.ndarray, np.ndar
     x, z = responses.x[sa1], np.array([z_of[i] for i in responses.index[sa1].tolist()])
     half_width, z_min, z_max = window
     inside = (np.abs(x) < half_width) & (z > z_min) & (z < z_max)
-    mu = fit_mean_counts(population["SA1"], responses.time, responses.stimulus[:, sa1[inside]])
+    mu = fit_mean_counts(population["SA1"], responses.time, responses.stimulus[:, sa1[inside]],
+                         until)
     return np.column_stack((x[inside], z[inside])), mu
 
 
@@ -456,7 +470,6 @@ def run_acuity_3d(out, widths=WIDTHS_3D, gaps=GAPS_3D, overrides=(),
     """Run every 3D stimulus not already finished in `out` (side by side under MPI), then the
     d′ of each task and width and the thresholds: out/acuity.csv, counts.csv (μ per run and
     site), summary.json, acuity.md and acuity.png. Returns the summary (on every rank)."""
-    from ..afferents.receptors import load_receptors
     from ..runner import run_side_by_side
 
     out = Path(out)
@@ -466,16 +479,40 @@ def run_acuity_3d(out, widths=WIDTHS_3D, gaps=GAPS_3D, overrides=(),
     run_side_by_side(todo, progress=progress)
     result = None
     if MPI.COMM_WORLD.rank == 0:
-        population = load_receptors(out / "sa1-row.toml")
-        window = window_of(jobs[0][1])
-        counts = {label: expected_counts_3d(where, population, window)
-                  for label, _, where in jobs}
-        result = summarise_3d(counts, widths, gaps, window)
-        result["runs"] = {label: run_cost(where) for label, _, where in jobs}
-        _write_tables_3d(out, counts, result)
-        plot_acuity_3d(result, counts, out / "acuity.png")
+        result = count_acuity_3d(out, widths, gaps, overrides)
     result = MPI.COMM_WORLD.bcast(result, root=0)
     write_json(out / "summary.json", result, MPI.COMM_WORLD)
+    return result
+
+
+def count_acuity_3d(out, widths=WIDTHS_3D, gaps=GAPS_3D, overrides=(),
+                    until: float | None = None) -> dict:
+    """The 3D tasks' d′ from the runs in `out` as they stand, running nothing (one rank):
+    counts over each finished run, or, given `until` (s), over 0 to `until` of runs read
+    before their end (every run must have reached it). Writes the study's files into `out`."""
+    from ..afferents.receptors import load_receptors
+    from ..outputs import read_csv
+
+    out = Path(out)
+    jobs = study_jobs_3d(out, widths, gaps, overrides)
+    if until is not None:
+        reached = {label: float(read_csv(where / "history.csv")["time_s"][-1])
+                   for label, _, where in jobs}
+        short = {label: t for label, t in reached.items() if t < until}
+        if short:
+            raise InputError("acuity 3D: until", f"{until:g} s is later than the runs "
+                             f"reached: {short}.", f"use until <= {min(reached.values()):g}.")
+    population = load_receptors(out / "sa1-row.toml")
+    window = window_of(jobs[0][1])
+    counts = {label: expected_counts_3d(where, population, window, until)
+              for label, _, where in jobs}
+    result = summarise_3d(counts, widths, gaps, window)
+    if until is None:
+        result["runs"] = {label: run_cost(where) for label, _, where in jobs}
+    else:
+        result["counted_until_s"], result["reached_s"] = until, reached
+    _write_tables_3d(out, counts, result)
+    plot_acuity_3d(result, counts, out / "acuity.png")
     return result
 
 
@@ -539,25 +576,30 @@ def _write_tables_3d(out: Path, counts: dict, result: dict) -> None:
 def plot_acuity_3d(result: dict, counts: dict, path: Path) -> None:
     """The expected counts of the window's sites over the surface (x across, z along the
     finger; both halves) for the grating along and across the finger and the bar without and
-    with a gap (each pair on one colour scale), and d′ against width per task."""
+    with a gap (each pair on one colour scale), and d′ against width per task; a task that
+    was not run (`--gaps` with no value) has no row."""
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(12.5, 7.6), layout="constrained")
-    axes = fig.subplots(2, 3)
     w = min(result["orientation"]["widths_mm"] or [1.0], key=lambda v: abs(v - 1.0))
     g = min(result["gap"]["widths_mm"] or [1.0], key=lambda v: abs(v - 1.0))
     rows = ((f"orientation-w{w:g}-along", f"{w:g} mm grating, ridges along the finger"),
             (f"orientation-w{w:g}-across", f"{w:g} mm grating, ridges across the finger")), (
            ("gap-g0", f"{result['gap_bar_mm']:g} mm bar along the finger, no gap"),
            (f"gap-g{g:g}", f"the same bar with a {g:g} mm gap"))
+    rows = [pair for pair in rows if pair[0][0] in counts] or rows[:1]
+    fig = Figure(figsize=(12.5, 0.6 + 3.5 * len(rows)), layout="constrained")
+    axes = fig.subplots(len(rows), 3, squeeze=False)
+    until = result.get("counted_until_s")
+    label = "expected SA1 spikes " + (f"over 0–{until:.3g} s" if until else "in the run")
     for panels, pair in zip(axes[:, :2], rows):
-        _surface_counts(fig, panels, counts, pair)
+        _surface_counts(fig, panels, counts, pair, label)
     _dprime_panel(axes[0, 2], result)
-    axes[1, 2].set_axis_off()
+    for ax in axes[1:, 2]:
+        ax.set_axis_off()
     fig.savefig(path, dpi=150)
 
 
-def _surface_counts(fig, panels, counts: dict, pair) -> None:
+def _surface_counts(fig, panels, counts: dict, pair, bar_label: str) -> None:
     """Two runs' expected counts at their sites, on one colour scale."""
     present = [(label, title) for label, title in pair if label in counts]
     top = max([counts[label][1].max() for label, _ in present] + [1.0])
@@ -568,7 +610,7 @@ def _surface_counts(fig, panels, counts: dict, pair) -> None:
                title=title, aspect="equal")
         ax.title.set_fontsize(9)
     if present:
-        fig.colorbar(dots, ax=list(panels), label="expected SA1 spikes in the run", shrink=0.8)
+        fig.colorbar(dots, ax=list(panels), label=bar_label, shrink=0.8)
 
 
 def _dprime_panel(ax, result: dict) -> None:
