@@ -14,39 +14,42 @@ from mpi4py import MPI
 from fingertip_dolfinx.studies.problems import MindlinSphere, drag_sphere, stick_radii
 
 SPHERE = MindlinSphere()  # E = 1 MPa, ν = 0.45, μ = 0.5, R = 1 mm, a ≈ 0.05 mm
-#: A small block (L = 6a, not 20a: its compliance moves the shift at which Q reaches μP, not
-#: Mindlin's c(Q)), elements of a/1.2 at the contact: seconds per Newton step.
-SMALL = MindlinSphere(L=0.3)
 #: Sphere shifts (mm): partial stick at Q/μP ≈ 0.6, then gross slip (Mindlin's full-slip
-#: distance μδ(2 − ν)/(2(1 − ν)) = 1.8 µm, the block adding a little).
-SHIFTS = (9e-4, 3.2e-3)
+#: distance μδ(2 − ν)/(2(1 − ν)) = 1.8 µm, the block adding a little), and a step of steady
+#: sliding (the first gross-slip step's slip still carries the surface's transverse elastic
+#: change: Q/(μP) = 0.998 after it, 0.9996 after the next on the a/1.5 block).
+SHIFTS = (9e-4, 2.4e-3, 3.2e-3)
+#: benchmarks/cattaneo_mindlin_3d.py's shifts (its press: 2 steps).
+BENCHMARK_SHIFTS = (3e-4, 6e-4, 9e-4, 1.2e-3, 2.4e-3, 3.2e-3)
 
 
 @cache
-def dragged(problem: MindlinSphere, n: float, shifts: tuple) -> tuple[dict, ...]:
-    """The press (1 step) and the drag through `shifts` on a mesh of a/n at the contact."""
-    prefix = f"drag3d_{problem.L}_{n}_".replace(".", "_")
-    return tuple(drag_sphere(problem, problem.a_target / n, shifts, press_steps=1,
+def dragged(problem: MindlinSphere, n: float, shifts: tuple, press_steps: int = 1):
+    """The press and the drag through `shifts` on a mesh of a/n at the contact."""
+    prefix = f"drag3d_{problem.L}_{n}_{press_steps}_".replace(".", "_")
+    return tuple(drag_sphere(problem, problem.a_target / n, shifts, press_steps=press_steps,
                              prefix=prefix, comm=MPI.COMM_WORLD))
 
 
 def test_a_dragged_sphere_obeys_coulomb_sticks_partly_then_slips_at_mu_times_the_load():
-    rows = dragged(SMALL, 1.2, SHIFTS)
+    rows = dragged(SPHERE, 1.5, SHIFTS)
     for r in rows:
         # |f| <= μp at every point the projection is evaluated: to rounding
         assert r["coulomb_excess"] <= 1e-12, r
-        assert abs(r["Q"]) <= SMALL.mu * abs(r["P"]) * (1 + 1e-9), r
-    partial, gross = rows[1], rows[2]
+        assert abs(r["Q"]) <= SPHERE.mu * abs(r["P"]) * (1 + 1e-9), r
+    partial, gross = rows[1], rows[-1]
     assert 0.3 < partial["ratio"] < 0.9, partial
-    # The stick zone's edge is an active-set edge on P2 elements of a/1.2: located to within
-    # a third of an element, 0.3 a, along and across the drag.
+    # The stick zone's edge is an active-set edge on P2 elements of a/1.5, located to within a
+    # quarter element, 0.17 a (as Hertz's contact edge is), on top of Mindlin's own error at
+    # ν = 0.45 (the slip annulus's traction is not parallel to x: an angle ~ν/(2 − ν) = 0.29,
+    # ~θ²/2 = 0.04 a; docs/benchmarks/friction.md): 0.25 a along and across the drag.
     for key in ("c_along", "c_across"):
         assert 0 < partial[key] < partial["a"], partial
-        assert abs(partial[key] - partial["c_theory"]) < 0.3 * partial["a"], partial
+        assert abs(partial[key] - partial["c_theory"]) < 0.25 * partial["a"], partial
     # Gross slip: |f| = μp everywhere in contact, tangent to the sphere; Q/(μP) differs from
     # 1 by the tilt of the sphere's surface over the contact, of order (a/R)² = 2.5e-3.
     assert gross["c_along"] == gross["c_across"] == 0.0, gross
-    assert gross["ratio"] == pytest.approx(1.0, abs=(SMALL.a_target / SMALL.R) ** 2), gross
+    assert gross["ratio"] == pytest.approx(1.0, abs=(SPHERE.a_target / SPHERE.R) ** 2), gross
 
 
 def test_mindlin_traction_carries_the_tangential_force_and_mu_p_where_it_slips():
