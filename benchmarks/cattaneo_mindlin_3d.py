@@ -4,7 +4,7 @@ along the drag and across it against c = a (1 − Q/(μP))^(1/3) on a ladder of 
 and gross slip Q = μP.
 
 Run: `python benchmarks/cattaneo_mindlin_3d.py [n ...]` (serial; n: the contact mesh size a/n,
-default 1.5 2; a/1.5 took 13 min on the shared machine under heavy load at `nice -n 15`).
+default 1.5 2; a/1.5: 92 s on the shared machine, 13 min under heavy load at `nice -n 15`).
 Prints one row per step: the mesh, the sphere's shift, Q/(μP), c/a along the drag
 (on z = 0) and across it (on x = 0) and Mindlin's, the L1 distance of the tangential traction
 q_x from Mindlin's over r < a (relative to the mean |q_th|), the largest transverse traction
