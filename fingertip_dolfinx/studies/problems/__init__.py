@@ -25,6 +25,9 @@ public name is imported here (`from fingertip_dolfinx.studies.problems import Co
 - `mindlin`: `CattaneoMindlin`, the cylinder on a whole block [−L, L] × [0, L] with Coulomb
   friction, pressed then dragged along x (`drag`): Cattaneo–Mindlin's stick half-width
   c = a sqrt(1 − Q/(μP)) and tangential traction, gross slip at Q = μP; `stick_halfwidth`.
+- `mindlin_sphere`: `MindlinSphere`, the 3D case, a rigid sphere on a half block (symmetry
+  plane z = 0) dragged along x (`drag_sphere`): Mindlin's stick radius
+  c = a (1 − Q/(μP))^(1/3) measured along and across the drag (`stick_radii`).
 - `layered`: `layered_block`, a synthetic 3D `FingertipMesh`, the four tissues as horizontal
   slabs of a half block with the fingertip's tags (pulp below, nail centre strip on top,
   symmetry and proximal-cut planes): the 3D problem's wiring without the fingertip geometry.
@@ -49,6 +52,7 @@ from .block import (
 from .hertz import Hertz, HertzBlock, HertzSphere, HertzSphereBlock, contact_edge
 from .layered import LAYERS, layered_block
 from .mindlin import CattaneoMindlin, MindlinBlock, drag, stick_halfwidth
+from .mindlin_sphere import MindlinSphere, SphereBlock, drag_sphere, stick_radii
 from .platens import (
     ConfinedRelaxation,
     PlatenRelaxation,
@@ -66,11 +70,11 @@ from .wiring import QUADRATURE_DEGREE, graded, newton_problem, support_reaction
 
 __all__ = [
     "CattaneoMindlin", "ConfinedBlock", "ConfinedRelaxation", "Hertz", "HertzBlock",
-    "HertzSphere", "HertzSphereBlock", "LAYERS", "MindlinBlock", "PlatenRelaxation",
-    "PlatenState", "QUADRATURE_DEGREE", "RelaxationRun", "Terzaghi", "UnconfinedBlock",
-    "UnconfinedRelaxation", "VibratingLayer", "confined_drained_state",
-    "confined_drained_stress", "confined_modulus", "contact_edge", "drag", "driven_layer",
-    "driven_layer_force", "graded", "layered_block", "newton_problem", "prony_ramp_integral",
-    "run_relaxation", "stick_halfwidth", "support_reaction", "unconfined_drained_state",
-    "unconfined_undrained_state",
+    "HertzSphere", "HertzSphereBlock", "LAYERS", "MindlinBlock", "MindlinSphere",
+    "PlatenRelaxation", "PlatenState", "QUADRATURE_DEGREE", "RelaxationRun", "SphereBlock",
+    "Terzaghi", "UnconfinedBlock", "UnconfinedRelaxation", "VibratingLayer",
+    "confined_drained_state", "confined_drained_stress", "confined_modulus", "contact_edge",
+    "drag", "drag_sphere", "driven_layer", "driven_layer_force", "graded", "layered_block",
+    "newton_problem", "prony_ramp_integral", "run_relaxation", "stick_halfwidth", "stick_radii",
+    "support_reaction", "unconfined_drained_state", "unconfined_undrained_state",
 ]
