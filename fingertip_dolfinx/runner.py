@@ -357,8 +357,10 @@ class Run:
         if self.problem.friction is None:
             return ()
         force = self.problem.force_keys[0]
-        return (f"tangential_{force}", "tangential_displacement_mm",
-                f"pressure_tangential_{force}", self.problem.dissipated_key)
+        axes = ("x_", "z_") if self.three_d else ("",)  # 3D: along x and along z, each named
+        return (*(column for a in axes for column in (
+            f"tangential_{a}{force}", f"tangential_{a}displacement_mm",
+            f"pressure_tangential_{a}{force}")), self.problem.dissipated_key)
 
     def on_step(self, report) -> None:
         """Write what the accepted step produced (its state is the converged one)."""
