@@ -86,6 +86,10 @@ DEFAULT_OPTIONS = ModelOptions()
 JIT_OPTIONS_3D = {"cffi_extra_compile_args": ["-O1", "-g0"]}
 
 
+#: With friction, 3D: the diagnostics' names of the contact area (p > 0) and the stick area.
+AREA_KEYS = ("contact_area_mm2", "stick_area_mm2")
+
+
 def _check_inputs(fmesh: FingertipMesh, indenters: Sequence[Indenter]) -> None:
     if not indenters:
         raise InputError("scene.indenters", "no indenter given.", "give at least one.")
@@ -429,7 +433,8 @@ class FingertipProblem(SteppableState):
         along x and along z, `tangential_x_force_N`, `tangential_z_displacement_mm`, ...); the
         pressure's share of the forces (`pressure_tangential_...`, `pressure_normal_...`; the
         rest is the friction traction's) and the energy the friction dissipated over the step
-        (`dissipated_N_mm_per_mm`, 3D `dissipated_N_mm`; measured before the step is accepted)."""
+        (`dissipated_N_mm_per_mm`, 3D `dissipated_N_mm`; measured before the step is accepted);
+        3D: the contact and stick areas (`AREA_KEYS`)."""
         f = self.friction.forces().sum(axis=0)
         p = self.friction.pressure_forces().sum(axis=0)
         force = self.force_keys[0]
@@ -441,6 +446,8 @@ class FingertipProblem(SteppableState):
             out |= {f"tangential_{axis}{force}": float(f[k]),
                     f"tangential_{axis}displacement_mm": s,
                     f"pressure_tangential_{axis}{force}": float(p[k])}
+        if self.gdim == 3:  # no stick/slip map on a 3D surface: its stick and contact areas
+            out |= dict(zip(AREA_KEYS, self.friction.areas()))
         return out
 
     @property

@@ -180,7 +180,8 @@ def test_a_direction_along_z_reads_back_and_is_refused_in_2d():
 def _rigid_slide(axis: int, moved: bool) -> tuple[np.ndarray, np.ndarray]:
     """A unit cube pressed 0.01 mm into a plate (penalty contact, μ = 0.5), then translated
     rigidly by 0.1 mm along `axis` (0: x, 2: z) without a solve, the plate with it if `moved`:
-    (the indenter's total force, the pressure's share), from `CoulombFriction`."""
+    (the indenter's total force, the pressure's share, the contact and stick areas), from
+    `CoulombFriction`."""
     from dolfinx import mesh as dmesh
 
     from fingertip_dolfinx.geometry.indenters import Plate
@@ -194,17 +195,19 @@ def _rigid_slide(axis: int, moved: bool) -> tuple[np.ndarray, np.ndarray]:
     u.x.array.reshape(-1, 3)[:, axis] = 0.1
     if moved:
         (obstacle.x_tip if axis == 0 else obstacle.z_tip).value = 0.1
-    return friction.forces()[0], friction.pressure_forces()[0]
+    return friction.forces()[0], friction.pressure_forces()[0], friction.areas()
 
 
 @pytest.mark.parametrize("axis", [0, 2])
 def test_friction_in_3d_follows_the_indenter_along_x_and_z(axis):
     # The body and the plate moved together: no slip, no friction force (before z_tip existed,
     # a move along z was slip against a plate that stayed, and took μ times the load).
-    force, pressure = _rigid_slide(axis, moved=True)
+    force, pressure, areas = _rigid_slide(axis, moved=True)
     assert np.allclose(force, pressure, rtol=0, atol=1e-14 * abs(pressure[1]))
+    assert areas == pytest.approx((1.0, 1.0), rel=1e-12)  # the cube's bottom face sticks
     # The body slid over a plate that stays: gross slip against the slip, μ times the load
-    force, pressure = _rigid_slide(axis, moved=False)
+    force, pressure, areas = _rigid_slide(axis, moved=False)
+    assert areas == pytest.approx((1.0, 0.0), abs=1e-12)  # all of it in contact slips
     friction = force - pressure
     assert pressure[1] > 0 and friction[axis] == pytest.approx(-0.5 * pressure[1], rel=1e-12)
     assert abs(friction[2 - axis]) < 1e-14 * pressure[1] and abs(friction[1]) < 1e-14

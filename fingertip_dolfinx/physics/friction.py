@@ -175,6 +175,22 @@ class CoulombFriction:
         comm = self.contact.u.function_space.mesh.comm
         return comm.allreduce(fem.assemble_scalar(self._dissipation_form), op=MPI.SUM)
 
+    @cached_property
+    def _area_forms(self) -> list[fem.Form]:
+        def indicator(positive):
+            return ufl.conditional(ufl.gt(positive, 0.0), 1.0, 0.0)
+        return [fem.form(indicator(f) * self.contact.ds)
+                for f in (self.contact.pressure, self.stick_margin)]
+
+    def areas(self) -> tuple[float, float]:
+        """(contact, stick) area: the reference surface where p > 0 and where the stick margin
+        is > 0 (mm² in 3D; mm per mm in plane strain), each counted at the surface quadrature
+        points (a measure of the active set, to about an element along its edge). Their ratio
+        is the stick fraction: 1 while the contact sticks everywhere, 0 in gross slip."""
+        comm = self.contact.u.function_space.mesh.comm
+        return tuple(comm.allreduce(fem.assemble_scalar(f), op=MPI.SUM)
+                     for f in self._area_forms)
+
     def _translation_forms(self, term) -> list[list[fem.Form]]:
         """[k][i]: −term(i, e_k), indenter i's residual term tested with the rigid translation
         e_k: the force it puts on the body along axis k (as contact._force_forms)."""
