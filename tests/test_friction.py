@@ -526,3 +526,32 @@ def test_the_jacobian_is_the_residuals_derivative_in_partial_stick(directional_e
         assert error(1e-2) < 1e-6  # measured 1.5e-8 at 0.8 s; round-off grows below ε = 1e-2
     finally:
         stepper.close()
+
+
+def check_shear_3d(history: dict, mu: float) -> None:
+    """The shear-3d scene's history: Coulomb's bound at every step, a partial-stick phase of the
+    drag, then gross slip (the issue's checks of the 2D shear scene, the tangential force
+    |(F_x, F_z)| of the half model), the stick area going from the contact's to none."""
+    ft = np.hypot(history["tangential_x_force_N"], history["tangential_z_force_N"])
+    ratio = ft / (mu * np.abs(history["force_N"]))
+    # Under the flat plate the pressure is all along y and |f| <= μp holds at every surface
+    # quadrature point by construction (the projection), so its integral holds to rounding.
+    assert np.all(ratio <= 1 + 1e-9), ratio.max()
+    drag = history["tangential_z_displacement_mm"] > 0
+    assert np.any(drag & (ratio > 0.1) & (ratio < 0.9)), ratio  # partial stick
+    assert ratio[-1] == pytest.approx(1.0, abs=0.02)  # gross slip at the end
+    fraction = history["stick_area_mm2"] / history["contact_area_mm2"]
+    assert fraction[~drag][-1] > 0.9 and fraction[-1] == 0.0, fraction
+    # the friction's y-share counted: the support balances the indenter
+    assert np.allclose(history["force_N"], history["reaction_N"], rtol=1e-5)
+
+
+@pytest.mark.slow
+def test_the_shear_3d_scene_sticks_partly_then_slips_at_mu_times_the_load(tmp_path):
+    from fingertip_dolfinx.outputs import read_csv
+    from fingertip_dolfinx.runner import run_scene
+    from fingertip_dolfinx.scene import load_scene
+
+    scene = load_scene("shear-3d", ["output.pictures=false", "output.fields=\"none\""])
+    run_scene(scene, tmp_path, progress=False)
+    check_shear_3d(read_csv(tmp_path / "history.csv"), scene.indenters[0].friction)
