@@ -552,6 +552,6 @@ def test_the_shear_3d_scene_sticks_partly_then_slips_at_mu_times_the_load(tmp_pa
     from fingertip_dolfinx.runner import run_scene
     from fingertip_dolfinx.scene import load_scene
 
-    scene = load_scene("shear-3d", ["output.pictures=false", "output.fields=\"none\""])
+    scene = load_scene("shear-3d", ["output.pictures=false"])
     run_scene(scene, tmp_path, progress=False)
     check_shear_3d(read_csv(tmp_path / "history.csv"), scene.indenters[0].friction)
