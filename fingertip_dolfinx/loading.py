@@ -310,15 +310,19 @@ History = PiecewiseLinear | RampHold | Sinusoid | Vibration
 @dataclass(frozen=True)
 class TangentialPath:
     """An indenter path in two parts: the indentation d(t) of `normal` (any protocol) and the
-    tangential displacement x(t) of the indenters along +x (mm; 2D: across the finger), the
-    piecewise-linear `tangential`, constant after its last point. Press then shear: `normal`
-    a ramp-hold, `tangential` 0 until the ramp's end, then a ramp. It meets `LoadHistory`
-    (d(t), the end and depth of `normal`, the breakpoints of both), so every existing protocol
-    and its use stay as they are; `tangential_at(t)` is x(t).
+    tangential displacement s(t) of the indenters along `direction` (mm), the piecewise-linear
+    `tangential`, constant after its last point. `direction` = (d_x, d_z), the in-plane
+    direction (x across the finger, z along it; only its direction counts, it is made a unit
+    vector): (1, 0), the default, is +x, the only direction of a 2D section. Press then shear:
+    `normal` a ramp-hold, `tangential` 0 until the ramp's end, then a ramp. It meets
+    `LoadHistory` (d(t), the end and depth of `normal`, the breakpoints of both), so every
+    existing protocol and its use stay as they are; `tangential_at(t)` is s(t),
+    `displacement_at(t)` its (x, z) components.
     """
 
     normal: LoadHistory
     tangential: PiecewiseLinear
+    direction: tuple[float, float] = (1.0, 0.0)  # (x, z), made a unit vector
 
     def __post_init__(self):
         if not isinstance(self.tangential, PiecewiseLinear):
@@ -329,6 +333,7 @@ class TangentialPath:
                 "protocol.tangential.times", f"the tangential path runs to "
                 f"{self.tangential.times[-1]:g} s, after the protocol's end "
                 f"({self.normal.end_time:g} s).", "end it by the protocol's end_time.")
+        object.__setattr__(self, "direction", unit_direction(self.direction))
 
     @property
     def end_time(self) -> float:
@@ -338,8 +343,13 @@ class TangentialPath:
         return self.normal(t)
 
     def tangential_at(self, t: float) -> float:
-        """The indenters' tangential displacement x(t) (mm)."""
+        """The indenters' tangential displacement s(t) along `direction` (mm)."""
         return self.tangential(t)
+
+    def displacement_at(self, t: float) -> tuple[float, float]:
+        """The indenters' tangential displacement's (x, z) components at t (mm)."""
+        s = self.tangential(t)
+        return s * self.direction[0], s * self.direction[1]
 
     @property
     def breakpoints(self) -> tuple[float, ...]:
@@ -350,6 +360,40 @@ class TangentialPath:
         return self.normal.deepest
 
 
+def unit_direction(direction, where: str = "protocol.tangential.direction") -> tuple:
+    """(d_x, d_z) as a unit vector; two finite numbers, not both 0 (InputError otherwise)."""
+    values = tuple(direction) if isinstance(direction, list | tuple) else (direction,)
+    if len(values) != 2 or not all(isinstance(x, int | float) and not isinstance(x, bool)
+                                   and math.isfinite(x) for x in values):
+        raise InputError(where, f"got {direction!r}.", "give two numbers [d_x, d_z]: the "
+                         "direction across (x) and along (z) the finger, e.g. [0, 1].")
+    norm = math.hypot(*values)
+    if norm == 0:
+        raise InputError(where, "the direction [0, 0] has none.",
+                         "give [1, 0] (across the finger, +x) or [0, 1] (along it, +z).")
+    return values[0] / norm, values[1] / norm
+
+
+def check_tangential_path(history, gdim: int, half: bool) -> None:
+    """A path along z needs a 3D finger; a path with a part along x needs the whole width of
+    the finger: a half model (the 3D `symmetry` plane x = 0 on rollers, u_x = 0) mirrors the
+    drag and would silently resist it. A drag along z keeps the mirror symmetry: a half model
+    is exact for it (with its indenters on the plane x = 0, as a half model needs anyway)."""
+    if not hasattr(history, "tangential_at"):
+        return
+    d_x, d_z = getattr(history, "direction", (1.0, 0.0))
+    if d_z != 0 and gdim == 2:
+        raise InputError("protocol.tangential.direction", f"{list(history.direction)} has a "
+                         "part along z, but the section is 2D (plane strain, no z).",
+                         "drag along x in 2D (direction = [1, 0], the default; [-1, 0] drags "
+                         "towards -x), or use a 3D section.")
+    if d_x != 0 and half:
+        raise InputError("protocol.tangential", "the mesh is a half model, mirror-symmetric "
+                         "about x = 0: a drag with a part along x breaks that symmetry.",
+                         "drag along the finger (direction = [0, 1]), or use a 2D section "
+                         "or a whole 3D finger (section.half = false).")
+
+
 KINDS = {"ramp-hold": RampHold, "piecewise-linear": PiecewiseLinear, "sinusoid": Sinusoid,
          "vibration": Vibration}
 
@@ -358,9 +402,9 @@ def history_from_dict(data: dict, where: str = "protocol") -> LoadHistory:
     """Build a protocol from a scene file's `[protocol]` table (`kind` picks the class)."""
     data = dict(data)
     tangential = data.pop("tangential", None)
-    if tangential is not None:  # the normal protocol, and the indenters' path along x
+    if tangential is not None:  # the normal protocol, and the indenters' tangential path
         return TangentialPath(history_from_dict(data, where),
-                              _tangential(tangential, f"{where}.tangential"))
+                              *_tangential(tangential, f"{where}.tangential"))
     kind = data.pop("kind", "ramp-hold")
     if kind not in KINDS:
         raise InputError(f"{where}.kind", f"unknown protocol {kind!r}.",
@@ -378,14 +422,16 @@ def history_from_dict(data: dict, where: str = "protocol") -> LoadHistory:
     return cls(**data)
 
 
-def _tangential(data, where: str) -> PiecewiseLinear:
-    """`[protocol.tangential]`: times (s) and values (mm along x) of a piecewise-linear path."""
-    check_keys(where, data, ["times", "values"], ["times", "values"])
+def _tangential(data, where: str) -> tuple[PiecewiseLinear, tuple[float, float]]:
+    """`[protocol.tangential]`: times (s) and values (mm along the direction) of a
+    piecewise-linear path, and its optional `direction` [d_x, d_z] (default [1, 0]: +x)."""
+    check_keys(where, data, ["times", "values", "direction"], ["times", "values"])
     for key, value in data.items():
         if not isinstance(value, list | tuple) or not all(
                 isinstance(x, int | float) and not isinstance(x, bool) for x in value):
             raise InputError(f"{where}.{key}", f"must be a list of numbers, got {value!r}.")
-    return PiecewiseLinear(tuple(data["times"]), tuple(data["values"]))
+    direction = unit_direction(data.get("direction", (1.0, 0.0)), f"{where}.direction")
+    return PiecewiseLinear(tuple(data["times"]), tuple(data["values"])), direction
 
 
 def step_times(breakpoints: Sequence[float], t: float, dt: float, end_time: float) -> float:

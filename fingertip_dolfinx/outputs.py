@@ -355,15 +355,15 @@ def _same_load(old: dict, new: dict, t: float) -> bool:
         return False
     s = np.union1d(np.linspace(0.0, t, 1001), [*kinks[0], t])
     same = True
-    for path in (lambda h, x: h(x), _tangential_at):  # the indentation, and the path along x
+    for path in (lambda h, x: h(x), _tangential_at):  # the indentation, and the path along x, z
         da, db = (np.array([path(h, x) for x in s]) for h in (a, b))
         same = same and bool(np.allclose(da, db, rtol=1e-12, atol=1e-15))
     return same
 
 
-def _tangential_at(history, t: float) -> float:
-    """The indenters' tangential displacement at t (mm; 0 for a protocol without one)."""
-    return history.tangential_at(t) if hasattr(history, "tangential_at") else 0.0
+def _tangential_at(history, t: float) -> tuple[float, float]:
+    """The indenters' tangential displacement (x, z) at t (mm; 0 for a protocol without one)."""
+    return history.displacement_at(t) if hasattr(history, "displacement_at") else (0.0, 0.0)
 
 
 class FieldWriters:

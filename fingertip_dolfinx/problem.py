@@ -61,7 +61,7 @@ from mpi4py import MPI
 from .errors import InputError
 from .geometry.indenters import Indenter
 from .geometry.mesh import FingertipMesh
-from .loading import History
+from .loading import History, check_tangential_path
 from .model import ModelOptions, State, compose_laws
 from .physics.admissibility import Admissibility, Compaction, from_holder
 from .physics.contact import (
@@ -89,6 +89,10 @@ DEFAULT_OPTIONS = ModelOptions()
 JIT_OPTIONS_3D = {"cffi_extra_compile_args": ["-O1", "-g0"], "timeout": 1800}
 
 
+#: With friction, 3D: the diagnostics' names of the contact area (p > 0) and the stick area.
+AREA_KEYS = ("contact_area_mm2", "stick_area_mm2")
+
+
 def _check_inputs(fmesh: FingertipMesh, indenters: Sequence[Indenter]) -> None:
     if not indenters:
         raise InputError("scene.indenters", "no indenter given.", "give at least one.")
@@ -98,12 +102,8 @@ def _check_inputs(fmesh: FingertipMesh, indenters: Sequence[Indenter]) -> None:
 
 
 def check_tangential(fmesh: FingertipMesh, history) -> None:
-    """A path along x needs the whole width of the finger: a half model (the 3D `symmetry`
-    plane x = 0 on rollers, u_x = 0) mirrors the drag and would silently resist it."""
-    if hasattr(history, "tangential_at") and "symmetry" in fmesh.names:
-        raise InputError("protocol.tangential", "the mesh is a half model, mirror-symmetric "
-                         "about x = 0: a drag along x breaks that symmetry.",
-                         "drag a 2D section; a whole 3D finger is not built yet.")
+    """`loading.check_tangential_path` for this mesh (a half model has a `symmetry` plane)."""
+    check_tangential_path(history, fmesh.mesh.geometry.dim, "symmetry" in fmesh.names)
 
 
 class FingertipProblem(SteppableState):
@@ -240,9 +240,11 @@ class FingertipProblem(SteppableState):
         X_pulp, _ = self.pulp_nodes()
         self.y_touch = first_touch(np.concatenate(self.mesh.comm.allgather(X_pulp)),
                                     self.indenters)
-        # an x_tip Constant only for a path with a tangential part: else the forms stay as they were
+        # x_tip (and in 3D z_tip) Constants only for a path with a tangential part: else the
+        # forms stay as they were
         x_tip = 0.0 if hasattr(self.history, "tangential_at") else None
-        self.obstacles = [Obstacle.at(self.mesh, ind, self.y_touch, x_tip)
+        z_tip = x_tip if self.gdim == 3 else None
+        self.obstacles = [Obstacle.at(self.mesh, ind, self.y_touch, x_tip, z_tip)
                           for ind in self.indenters]
         pulp, o = self.laws.regions["skin"], self.options
         self.contact = NitscheContact(
@@ -373,12 +375,23 @@ class FingertipProblem(SteppableState):
             obstacle.y_tip.value = self.y_touch + self.indentation(t)
             if obstacle.x_tip is not None:
                 obstacle.x_tip.value = self.tangential_displacement(t)
+            if obstacle.z_tip is not None:
+                obstacle.z_tip.value = self.tangential_displacements(t)[1]
         self.time = t
 
     def tangential_displacement(self, t: float) -> float:
         """The indenters' displacement along x at time t (mm; 0 without a tangential path)."""
-        return float(self.history.tangential_at(t)) if hasattr(
-            self.history, "tangential_at") else 0.0
+        return self.tangential_displacements(t)[0]
+
+    def tangential_displacements(self, t: float) -> tuple[float, float]:
+        """The indenters' displacement along x and z at time t (mm; 0 without a tangential
+        path)."""
+        if not hasattr(self.history, "tangential_at"):
+            return 0.0, 0.0
+        # a path along x (2D) is x(t) itself, as before the direction existed
+        if getattr(self.history, "direction", (1.0, 0.0)) == (1.0, 0.0):
+            return float(self.history.tangential_at(t)), 0.0
+        return tuple(float(c) for c in self.history.displacement_at(t))
 
     def residual_hotspot(self, residual) -> np.ndarray | None:
         """Reference position (mm) of the displacement node with the largest residual force in
@@ -419,17 +432,26 @@ class FingertipProblem(SteppableState):
 
     def _friction_diagnostics(self) -> dict[str, float]:
         """With friction: the indenters' y-force with the friction's share (what balances the
-        support), the tangential force along x and the indenters' tangential displacement; the
-        pressure's share of both (`pressure_tangential_...`, `pressure_normal_...`; the rest
-        is the friction traction's) and the energy the friction dissipated over the step
-        (`dissipated_N_mm_per_mm`, 3D `dissipated_N_mm`; measured before the step is accepted)."""
-        fx, fy = self.friction.forces().sum(axis=0)[:2]
-        px, py = self.friction.pressure_forces().sum(axis=0)[:2]
+        support), the tangential force along x and the indenters' displacement along x (3D:
+        along x and along z, `tangential_x_force_N`, `tangential_z_displacement_mm`, ...); the
+        pressure's share of the forces (`pressure_tangential_...`, `pressure_normal_...`; the
+        rest is the friction traction's) and the energy the friction dissipated over the step
+        (`dissipated_N_mm_per_mm`, 3D `dissipated_N_mm`; measured before the step is accepted);
+        3D: the contact and stick areas (`AREA_KEYS`)."""
+        f = self.friction.forces().sum(axis=0)
+        p = self.friction.pressure_forces().sum(axis=0)
         force = self.force_keys[0]
-        return {force: float(fy), f"tangential_{force}": float(fx),
-                "tangential_displacement_mm": self.tangential_displacement(self.time),
-                f"pressure_tangential_{force}": float(px), f"pressure_normal_{force}": float(py),
-                self.dissipated_key: self.friction.dissipated()}
+        out = {force: float(f[1]), f"pressure_normal_{force}": float(p[1]),
+               self.dissipated_key: self.friction.dissipated()}
+        axes = ("x", "z") if self.gdim == 3 else ("",)  # 3D: both tangential axes, named
+        for name, k, s in zip(axes, (0, 2), self.tangential_displacements(self.time)):
+            axis = f"{name}_" if name else ""
+            out |= {f"tangential_{axis}{force}": float(f[k]),
+                    f"tangential_{axis}displacement_mm": s,
+                    f"pressure_tangential_{axis}{force}": float(p[k])}
+        if self.gdim == 3:  # no stick/slip map on a 3D surface: its stick and contact areas
+            out |= dict(zip(AREA_KEYS, self.friction.areas()))
+        return out
 
     @property
     def dissipated_key(self) -> str:

@@ -67,13 +67,14 @@ from .plotting.figures import (
     plot_depth_profiles,
     plot_force_history,
     plot_friction,
+    plot_friction_3d,
     plot_line_force,
     plot_population,
     plot_surface_profiles,
 )
 from .plotting.pictures import field_pictures
 from .post import DerivedFields, FieldArrays, Profiles, Profiles3D
-from .problem import FingertipProblem
+from .problem import AREA_KEYS, FingertipProblem
 from .result import Result
 from .scene import Scene, scene_record
 from .stepping.stepper import TimeStepper
@@ -357,8 +358,11 @@ class Run:
         if self.problem.friction is None:
             return ()
         force = self.problem.force_keys[0]
-        return (f"tangential_{force}", "tangential_displacement_mm",
-                f"pressure_tangential_{force}", self.problem.dissipated_key)
+        axes = ("x_", "z_") if self.three_d else ("",)  # 3D: along x and along z, each named
+        return (*(column for a in axes for column in (
+            f"tangential_{a}{force}", f"tangential_{a}displacement_mm",
+            f"pressure_tangential_{a}{force}")), self.problem.dissipated_key,
+            *(AREA_KEYS if self.three_d else ()))
 
     def on_step(self, report) -> None:
         """Write what the accepted step produced (its state is the converged one)."""
@@ -473,6 +477,11 @@ class Run:
                                     folder / "population.png", self.scene.title)
                 if self.three_d:
                     _figures_3d(self.out, self.scene.title, folder)
+                    if self.problem.friction is not None:
+                        h = read_csv(self.out / "history.csv")
+                        plot_friction_3d(h, folder / "friction.png",
+                                         max(self.problem.friction_coefficients),
+                                         title=self.scene.title)
         return summary
 
 

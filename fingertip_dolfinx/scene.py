@@ -27,7 +27,7 @@ from .geometry.fingertip3d import Fingertip3D, load_fingertip3d, section_dimensi
 from .geometry.indenters import Indenter, load_indenter, make_indenter
 from .geometry.section import Section, load_section
 from .harmonic_options import HarmonicOptions
-from .loading import KINDS, LoadHistory, TangentialPath, history_from_dict
+from .loading import KINDS, LoadHistory, TangentialPath, check_tangential_path, history_from_dict
 from .model import ModelOptions
 from .physics.tissues import DEFAULT_SET, WU2004, Tissues, load_materials
 from .stepping.options import StepOptions, check_linear
@@ -230,6 +230,8 @@ class Scene:
             raise InputError(f"{self.name}: protocol", f"the indentation never exceeds "
                              f"{self.history.deepest:g} mm: the indenters would not press.",
                              "give a positive depth (mm after first touch).")
+        three_d = isinstance(self.section, Fingertip3D)
+        check_tangential_path(self.history, 3 if three_d else 2, three_d and self.section.half)
         if self.model.inertia and self.steps.scheme != "generalized-alpha":
             raise InputError(f"{self.name}: steps.scheme", f"{self.steps.scheme!r} integrates "
                              "no acceleration, but model.inertia is on.",
@@ -758,11 +760,14 @@ def _indenter_record(indenter: Indenter) -> dict:
 
 def _protocol_record(history) -> dict:
     """The `[protocol]` table of `history` (a tangential path: its normal protocol's table with
-    the `tangential` points), as `loading.history_from_dict` reads it back."""
+    the `tangential` points, and their `direction` where it is not +x: the record of a path
+    along x is the one it had before the key), as `loading.history_from_dict` reads it back."""
     if isinstance(history, TangentialPath):
         path = history.tangential
-        return _protocol_record(history.normal) | {
-            "tangential": {"times": path.times, "values": path.values}}
+        table = {"times": path.times, "values": path.values}
+        if history.direction != (1.0, 0.0):
+            table["direction"] = history.direction
+        return _protocol_record(history.normal) | {"tangential": table}
     kind = next((k for k, cls in KINDS.items() if isinstance(history, cls)), type(history).__name__)
     return {"kind": kind, **{f.name: getattr(history, f.name)
                              for f in dataclasses.fields(history) if f.init}}

@@ -5,6 +5,7 @@ Closed form (plane strain, Johnson §7.1): under P and a monotonic tangential lo
 contact of Hertz half-width a sticks on |x| < c = a sqrt(1 − Q/(μP)); Q = μP is gross slip.
 """
 
+import dataclasses
 from functools import cache
 
 import numpy as np
@@ -141,6 +142,77 @@ def test_a_tangential_path_presses_as_its_normal_protocol_and_moves_along_x():
         TangentialPath(normal, PiecewiseLinear((0.0, 2.0), (0.0, 1.0)))
 
 
+def test_a_tangential_path_has_a_direction_across_or_along_the_finger():
+    normal = RampHold(depth=0.5, ramp_time=0.5, end_time=1.5)
+    drag = PiecewiseLinear((0.0, 0.5, 1.5), (0.0, 0.0, 2.0))
+    along_x = TangentialPath(normal, drag)  # the default: +x, as every 2D path
+    assert along_x.direction == (1.0, 0.0) and along_x.displacement_at(1.0) == (1.0, 0.0)
+    along_z = TangentialPath(normal, drag, direction=(0.0, 3.0))  # only the direction counts
+    assert along_z.direction == (0.0, 1.0) and along_z.displacement_at(1.5) == (0.0, 2.0)
+    assert along_z.tangential_at(1.0) == 1.0  # s(t): the distance along the direction
+    oblique = TangentialPath(normal, drag, direction=(1.0, -1.0))
+    assert oblique.displacement_at(1.5) == pytest.approx((2 ** 0.5, -(2 ** 0.5)), abs=1e-15)
+    for bad in ((0.0, 0.0), (1.0, 0.0, 0.0), (float("nan"), 1.0), (True, 0.0), "z"):
+        with pytest.raises(InputError, match="direction"):
+            TangentialPath(normal, drag, direction=bad)
+
+
+def test_a_direction_along_z_reads_back_and_is_refused_in_2d():
+    from fingertip_dolfinx.loading import check_tangential_path, history_from_dict
+    from fingertip_dolfinx.scene import _protocol_record
+
+    table = {"kind": "ramp-hold", "depth": 0.5, "ramp_time": 0.5, "end_time": 1.5,
+             "tangential": {"times": [0.0, 0.5, 1.5], "values": [0.0, 0.0, 1.5],
+                            "direction": [0, 2]}}
+    path = history_from_dict(table)
+    assert path.direction == (0.0, 1.0) and path.displacement_at(1.0) == (0.0, 0.75)
+    assert history_from_dict(_protocol_record(path)) == path  # summary.json reads back
+    with pytest.raises(InputError, match="direction"):
+        history_from_dict(table | {"tangential": table["tangential"] | {"direction": [0, 0]}})
+    with pytest.raises(InputError, match="section is 2D"):
+        check_tangential_path(path, 2, half=False)
+    check_tangential_path(path, 3, half=True)  # the mirror symmetry holds for a drag along z
+    # a path along x has the record it had before the key: its runs still resume
+    del table["tangential"]["direction"]
+    assert "direction" not in _protocol_record(history_from_dict(table))["tangential"]
+
+
+def _rigid_slide(axis: int, moved: bool) -> tuple[np.ndarray, np.ndarray]:
+    """A unit cube pressed 0.01 mm into a plate (penalty contact, μ = 0.5), then translated
+    rigidly by 0.1 mm along `axis` (0: x, 2: z) without a solve, the plate with it if `moved`:
+    (the indenter's total force, the pressure's share, the contact and stick areas), from
+    `CoulombFriction`."""
+    from dolfinx import mesh as dmesh
+
+    from fingertip_dolfinx.geometry.indenters import Plate
+
+    domain = dmesh.create_unit_cube(MPI.COMM_SELF, 2, 2, 2)
+    V = fem.functionspace(domain, ("Lagrange", 1, (3,)))
+    u = fem.Function(V)
+    obstacle = Obstacle.at(domain, Plate(), y_tip=0.01, x_tip=0.0, z_tip=0.0)
+    contact = NitscheContact(u, ufl.grad(u), ufl.ds, [obstacle], modulus=1.0, method="penalty")
+    friction = CoulombFriction(contact, 0.5)  # its start: the pressed state, u = 0
+    u.x.array.reshape(-1, 3)[:, axis] = 0.1
+    if moved:
+        (obstacle.x_tip if axis == 0 else obstacle.z_tip).value = 0.1
+    return friction.forces()[0], friction.pressure_forces()[0], friction.areas()
+
+
+@pytest.mark.parametrize("axis", [0, 2])
+def test_friction_in_3d_follows_the_indenter_along_x_and_z(axis):
+    # The body and the plate moved together: no slip, no friction force (before z_tip existed,
+    # a move along z was slip against a plate that stayed, and took μ times the load).
+    force, pressure, areas = _rigid_slide(axis, moved=True)
+    assert np.allclose(force, pressure, rtol=0, atol=1e-14 * abs(pressure[1]))
+    assert areas == pytest.approx((1.0, 1.0), rel=1e-12)  # the cube's bottom face sticks
+    # The body slid over a plate that stays: gross slip against the slip, μ times the load
+    force, pressure, areas = _rigid_slide(axis, moved=False)
+    assert areas == pytest.approx((1.0, 0.0), abs=1e-12)  # all of it in contact slips
+    friction = force - pressure
+    assert pressure[1] > 0 and friction[axis] == pytest.approx(-0.5 * pressure[1], rel=1e-12)
+    assert abs(friction[2 - axis]) < 1e-14 * pressure[1] and abs(friction[1]) < 1e-14
+
+
 def shear_run(mu: float) -> list:
     """A plate pressed 0.5 mm into the coarse 2D pulp in 0.5 s, then dragged 1 mm along x in
     1 s (the stepper's own steps of <= 0.1 s)."""
@@ -225,11 +297,17 @@ def test_a_half_model_is_not_dragged_across_its_symmetry_plane():
 
     path = TangentialPath(RampHold(depth=0.5, ramp_time=0.5, end_time=1.5),
                           PiecewiseLinear((0.0, 0.5, 1.5), (0.0, 0.0, 1.0)))
-    half = SimpleNamespace(names={"symmetry": 7, "pulp_surface": 1})
+    mesh3d = SimpleNamespace(geometry=SimpleNamespace(dim=3))
+    half = SimpleNamespace(names={"symmetry": 7, "pulp_surface": 1}, mesh=mesh3d)
     with pytest.raises(InputError, match="half model"):
         check_tangential(half, path)
     check_tangential(half, path.normal)  # pressing a half model stays as it was
-    check_tangential(SimpleNamespace(names={"pulp_surface": 1}), path)  # a 2D section
+    section = SimpleNamespace(geometry=SimpleNamespace(dim=2))
+    check_tangential(SimpleNamespace(names={"pulp_surface": 1}, mesh=section), path)  # 2D
+    # along the finger the mirror symmetry holds: the half model is exact for the drag
+    check_tangential(half, dataclasses.replace(path, direction=(0.0, 1.0)))
+    with pytest.raises(InputError, match="half model"):  # a part along x breaks it
+        check_tangential(half, dataclasses.replace(path, direction=(1.0, 1.0)))
 
 
 #: A longer drag: Q/(μP) ≈ 0.22, 0.44, 0.66, 0.87 (partial stick), then gross slip from ~1e-3 mm
@@ -448,3 +526,32 @@ def test_the_jacobian_is_the_residuals_derivative_in_partial_stick(directional_e
         assert error(1e-2) < 1e-6  # measured 1.5e-8 at 0.8 s; round-off grows below ε = 1e-2
     finally:
         stepper.close()
+
+
+def check_shear_3d(history: dict, mu: float) -> None:
+    """The shear-3d scene's history: Coulomb's bound at every step, a partial-stick phase of the
+    drag, then gross slip (the issue's checks of the 2D shear scene, the tangential force
+    |(F_x, F_z)| of the half model), the stick area going from the contact's to none."""
+    ft = np.hypot(history["tangential_x_force_N"], history["tangential_z_force_N"])
+    ratio = ft / (mu * np.abs(history["force_N"]))
+    # Under the flat plate the pressure is all along y and |f| <= μp holds at every surface
+    # quadrature point by construction (the projection), so its integral holds to rounding.
+    assert np.all(ratio <= 1 + 1e-9), ratio.max()
+    drag = history["tangential_z_displacement_mm"] > 0
+    assert np.any(drag & (ratio > 0.1) & (ratio < 0.9)), ratio  # partial stick
+    assert ratio[-1] == pytest.approx(1.0, abs=0.02)  # gross slip at the end
+    fraction = history["stick_area_mm2"] / history["contact_area_mm2"]
+    assert fraction[~drag][-1] > 0.9 and fraction[-1] == 0.0, fraction
+    # the friction's y-share counted: the support balances the indenter
+    assert np.allclose(history["force_N"], history["reaction_N"], rtol=1e-5)
+
+
+@pytest.mark.slow
+def test_the_shear_3d_scene_sticks_partly_then_slips_at_mu_times_the_load(tmp_path):
+    from fingertip_dolfinx.outputs import read_csv
+    from fingertip_dolfinx.runner import run_scene
+    from fingertip_dolfinx.scene import load_scene
+
+    scene = load_scene("shear-3d", ["output.pictures=false"])
+    run_scene(scene, tmp_path, progress=False)
+    check_shear_3d(read_csv(tmp_path / "history.csv"), scene.indenters[0].friction)

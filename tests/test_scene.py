@@ -207,12 +207,26 @@ def test_a_run_without_pictures_writes_the_numbers_only(tmp_path, monkeypatch):
 
 
 @pytest.mark.parametrize("name", ["line-load-3d", "2pt-3d", "probe-3d", "vibrotactile-3d",
-                                  "grating-3d"])
+                                  "grating-3d", "shear-3d"])
 def test_the_3d_scenes_load_with_a_3d_fingertip(name):
     from fingertip_dolfinx.geometry.fingertip3d import Fingertip3D
 
     scene = load_scene(name)
     assert isinstance(scene.section, Fingertip3D) and scene.section.half
+
+
+def test_shear_3d_drags_along_the_finger_and_checks_from_the_command_line(capsys):
+    from fingertip_dolfinx.cli import main
+
+    scene = load_scene("shear-3d")
+    assert scene.history.direction == (0.0, 1.0) and scene.indenters[0].friction == 0.5
+    assert main(["run", "shear-3d", "--check"]) == 0
+    assert "check passed" in capsys.readouterr().err
+    # across the finger the half model's mirror symmetry breaks; a 2D section has no z
+    with pytest.raises(InputError, match="half model"):
+        load_scene("shear-3d", ["protocol.tangential.direction=[1.0, 1.0]"])
+    with pytest.raises(InputError, match="section is 2D"):
+        load_scene("shear", ["protocol.tangential.direction=[0.0, 1.0]"])
 
 
 def test_section_z_is_refused_in_2d_and_off_the_cylinder():

@@ -81,30 +81,39 @@ class TipResolutionWarning(UserWarning):
 @dataclass(frozen=True)
 class Obstacle:
     """An indenter in the scene: the loading moves it by setting `y_tip.value`, and, if it has
-    one, its tangential displacement along x by `x_tip.value` (mm; None: it never moves in x,
-    and the contact forms are exactly those of a fixed centre_x)."""
+    them, its tangential displacement along x by `x_tip.value` and (3D) along z by
+    `z_tip.value` (mm; None: it never moves along that axis, and the contact forms are exactly
+    those of a fixed centre_x, centre_z)."""
 
     indenter: Indenter
     y_tip: fem.Constant
     x_tip: fem.Constant | None = None
+    z_tip: fem.Constant | None = None
 
     @classmethod
     def at(cls, domain: dmesh.Mesh, indenter: Indenter, y_tip: float = 0.0,
-           x_tip: float | None = None) -> Obstacle:
-        x = None if x_tip is None else fem.Constant(domain, float(x_tip))
-        return cls(indenter, fem.Constant(domain, float(y_tip)), x)
+           x_tip: float | None = None, z_tip: float | None = None) -> Obstacle:
+        x, z = (None if v is None else fem.Constant(domain, float(v)) for v in (x_tip, z_tip))
+        return cls(indenter, fem.Constant(domain, float(y_tip)), x, z)
+
+    def _shifts(self, d: int) -> dict:
+        """Axis -> the Constant moving the indenter along it (x: 0, z: 2), those it has."""
+        return {k: c for k, c in ((0, self.x_tip), (2, self.z_tip)) if c is not None and k < d}
 
     def relative(self, x):
-        """The point x (UFL vector) in the indenter's frame: shifted back by x_tip along x."""
-        if self.x_tip is None:
+        """The point x (UFL vector) in the indenter's frame: shifted back by x_tip along x and
+        z_tip along z."""
+        shifts = self._shifts(x.ufl_shape[0])
+        if not shifts:
             return x
-        return x - ufl.as_vector([self.x_tip if k == 0 else 0.0 for k in range(x.ufl_shape[0])])
+        return x - ufl.as_vector([shifts.get(k, 0.0) for k in range(x.ufl_shape[0])])
 
     def relative_np(self, x: np.ndarray) -> np.ndarray:
         """`relative` for points (m, d) in numpy."""
-        if self.x_tip is None:
+        shifts = self._shifts(x.shape[1])
+        if not shifts:
             return x
-        return x - np.eye(x.shape[1])[0] * float(self.x_tip.value)
+        return x - sum(np.eye(x.shape[1])[k] * float(c.value) for k, c in shifts.items())
 
 
 class NitscheContact:

@@ -81,7 +81,8 @@ class CoulombFriction:
     Add `residual(v)` to the contact's; call `mark_accepted()` after every accepted step (it
     runs once here, with the body and the indenters at their start). Measure a step (forces,
     traction, stick margin) before accepting it: they depend on the step's slip. An indenter
-    moved along x needs an `x_tip` Constant (`Obstacle.at(..., x_tip=0.0)`).
+    moved along x needs an `x_tip` Constant (`Obstacle.at(..., x_tip=0.0)`), along z (3D) a
+    `z_tip`.
 
     γ_t = `gamma_ratio` × the contact's γ. The method is consistent for any γ_t > 0; the
     contact's γ = γ0 M/h is scaled by the P-wave modulus M, which for nearly incompressible
@@ -98,8 +99,8 @@ class CoulombFriction:
         domain = u.function_space.mesh
         gdim = domain.geometry.dim
         self.u_prev = fem.Function(u.function_space, name="u_prev")
-        #: Each indenter's (x, y) at the last accepted step.
-        self._previous = [fem.Constant(domain, np.zeros(2)) for _ in contact.obstacles]
+        #: Each indenter's (x, y) (3D: (x, y, z)) at the last accepted step.
+        self._previous = [fem.Constant(domain, np.zeros(gdim)) for _ in contact.obstacles]
         self._forces, self.trial, self._slips = [], [], []
         for i in range(len(contact.obstacles)):
             q, radius = self._trial(i, gdim)
@@ -130,7 +131,7 @@ class CoulombFriction:
         """Indenter i's q = t_t − γ Δs_t (UFL vector) and the ball's radius μ p."""
         contact, obstacle = self.contact, self.contact.obstacles[i]
         n = contact._normals[i]
-        moved = ufl.as_vector([_coordinate(obstacle, k) - self._previous[i][k] if k < 2 else 0.0
+        moved = ufl.as_vector([_coordinate(obstacle, k) - self._previous[i][k]
                                for k in range(gdim)])
         tangential = ufl.Identity(gdim) - ufl.outer(n, n)
         slip = tangential * (contact.u - self.u_prev - moved)
@@ -150,7 +151,8 @@ class CoulombFriction:
         """The current state becomes the start of the next slip increment."""
         self.u_prev.x.array[:] = self.contact.u.x.array
         for previous, obstacle in zip(self._previous, self.contact.obstacles):
-            previous.value[:] = (_value(obstacle.x_tip), _value(obstacle.y_tip))
+            previous.value[:] = [_value(_coordinate(obstacle, k))
+                                 for k in range(len(previous.value))]
 
     def advance(self) -> None:
         """The time stepper's name for `mark_accepted` (friction is one of its histories)."""
@@ -173,6 +175,22 @@ class CoulombFriction:
         comm = self.contact.u.function_space.mesh.comm
         return comm.allreduce(fem.assemble_scalar(self._dissipation_form), op=MPI.SUM)
 
+    @cached_property
+    def _area_forms(self) -> list[fem.Form]:
+        def indicator(positive):
+            return ufl.conditional(ufl.gt(positive, 0.0), 1.0, 0.0)
+        return [fem.form(indicator(f) * self.contact.ds)
+                for f in (self.contact.pressure, self.stick_margin)]
+
+    def areas(self) -> tuple[float, float]:
+        """(contact, stick) area: the reference surface where p > 0 and where the stick margin
+        is > 0 (mm² in 3D; mm per mm in plane strain), each counted at the surface quadrature
+        points (a measure of the active set, to about an element along its edge). Their ratio
+        is the stick fraction: 1 while the contact sticks everywhere, 0 in gross slip."""
+        comm = self.contact.u.function_space.mesh.comm
+        return tuple(comm.allreduce(fem.assemble_scalar(f), op=MPI.SUM)
+                     for f in self._area_forms)
+
     def _translation_forms(self, term) -> list[list[fem.Form]]:
         """[k][i]: −term(i, e_k), indenter i's residual term tested with the rigid translation
         e_k: the force it puts on the body along axis k (as contact._force_forms)."""
@@ -192,7 +210,8 @@ class CoulombFriction:
 
     def forces(self) -> np.ndarray:
         """(indenters, gdim): the force each indenter exerts on the body, pressure and
-        friction (N/mm in plane strain, N in 3D); column 0 is the tangential force along x."""
+        friction (N/mm in plane strain, N in 3D); columns 0 and (3D) 2 are the tangential
+        force along x and z."""
         return self._assemble(self._force_forms)
 
     @cached_property
@@ -214,11 +233,11 @@ class CoulombFriction:
 
 
 def _coordinate(obstacle, k: int):
-    """The indenter's position along x (k = 0: x_tip, 0 without one) or y (k = 1: y_tip)."""
-    if k == 1:
-        return obstacle.y_tip
-    return 0.0 if obstacle.x_tip is None else obstacle.x_tip
+    """The indenter's position along x (k = 0: x_tip), y (k = 1: y_tip) or z (k = 2: z_tip);
+    0.0 along an axis it never moves along."""
+    constant = (obstacle.x_tip, obstacle.y_tip, obstacle.z_tip)[k]
+    return 0.0 if constant is None else constant
 
 
 def _value(constant) -> float:
-    return 0.0 if constant is None else float(constant.value)
+    return float(constant) if isinstance(constant, float) else float(constant.value)

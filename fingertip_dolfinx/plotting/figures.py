@@ -226,6 +226,38 @@ def plot_friction(stick_slip: dict, history: dict, path: Path, mu: float,
     fig.savefig(path, dpi=150)
 
 
+def plot_friction_3d(history: dict, path: Path, mu: float, title: str = "") -> None:
+    """A 3D run with friction, from history.csv. Above: the contact area and its sticking part
+    against time (a 3D surface has no stick/slip map). Below: the normal force, the tangential
+    force's size |(F_x, F_z)| and Coulomb's bound μ times the normal force."""
+    fig = Figure(figsize=(6.4, 6.4))
+    ax_a, ax_f = fig.subplots(2, 1, sharex=True, height_ratios=(1, 1))
+    t = np.concatenate([[0.0], history["time_s"]])
+    for key, colour, label in (("contact_area_mm2", "0.3", "in contact"),
+                               ("stick_area_mm2", STATE_COLOURS[2], "sticking")):
+        ax_a.plot(t, np.concatenate([[0.0], history[key]]), "o-", ms=3, color=colour,
+                  label=label)
+    ax_a.set_ylabel("area (mm², reference)")
+    ax_a.legend(fontsize=8)
+    ax_a.grid(alpha=0.3)
+    ax_a.set_title(title)
+    normal = np.abs(np.concatenate([[0.0], history["force_N"]]))
+    tangential = np.concatenate([[0.0], np.hypot(history["tangential_x_force_N"],
+                                                 history["tangential_z_force_N"])])
+    factor, label = display_unit("force (N)", float(np.max(normal)))
+    ax_f.plot(t, factor * normal, "k-", label="normal force")
+    ax_f.plot(t, factor * tangential, "o-", ms=3, color=STATE_COLOURS[1],
+              label="tangential force |(F_x, F_z)|")
+    ax_f.plot(t, factor * mu * normal, "--", color="0.4",
+              label=f"μ × normal force (μ = {mu:g})")
+    ax_f.set_ylabel(label)
+    ax_f.set_xlabel("time (s)")
+    ax_f.legend(fontsize=8)
+    ax_f.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=150)
+
+
 def plot_surface_profiles(profile: dict, path: Path, title: str = "", along: str = "x") -> None:
     """Deflection of the pulp surface along x (or z: `along`) at each output time (cf. the
     paper's Fig. 2)."""
