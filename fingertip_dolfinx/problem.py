@@ -54,7 +54,7 @@ from functools import cached_property
 
 import numpy as np
 import ufl
-from dolfinx import fem
+from dolfinx import fem, jit
 from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
@@ -82,11 +82,22 @@ TIP_SAMPLES = 9
 #: The tags a fingertip mesh must carry.
 REQUIRED_TAGS = (*REGIONS, "pulp_surface", "nail_centre")
 DEFAULT_OPTIONS = ModelOptions()
-#: See `FingertipProblem.jit_options`. `timeout` (s): how long a process waits for a form that
-#: another one is compiling (FFCx's default, 10 s, is far shorter than a 3D compile: two runs
-#: of the 3D acuity study side by side on a cold cache, one per rank, had the second give up
-#: and wait in a collective until the first rank's runs ended); as the container's setting.
-JIT_OPTIONS_3D = {"cffi_extra_compile_args": ["-O1", "-g0"], "timeout": 1800}
+#: How long (s) a process waits for a form another process is compiling: FFCx's default, 10 s,
+#: is far shorter than a compile on a busy machine (a 3D Newton form takes minutes). Runs side
+#: by side under MPI (`runner.run_side_by_side`: the 3D acuity study, sweeps) compile the same
+#: forms at once on a cold cache; with 10 s one rank gave up on the shared reaction form and waited
+#: in a collective until the other rank's runs ended. The container's setting too.
+JIT_WAIT = 1800
+#: See `FingertipProblem.jit_options`.
+JIT_OPTIONS_3D = {"cffi_extra_compile_args": ["-O1", "-g0"], "timeout": JIT_WAIT}
+
+
+def wait_for_compiles_elsewhere(seconds: float = JIT_WAIT) -> None:
+    """Make every form compiled from now on in this process wait up to `seconds` for another
+    process compiling the same form (DOLFINx's default JIT option; a user's
+    `dolfinx_jit_options.json` still takes precedence)."""
+    value, doc = jit.DOLFINX_DEFAULT_JIT_OPTIONS["timeout"]
+    jit.DOLFINX_DEFAULT_JIT_OPTIONS["timeout"] = (max(value, seconds), doc)
 
 
 #: With friction, 3D: the diagnostics' names of the contact area (p > 0) and the stick area.
@@ -143,6 +154,7 @@ class FingertipProblem(SteppableState):
     ):
         _check_inputs(fmesh, indenters)
         check_tangential(fmesh, history)
+        wait_for_compiles_elsewhere()
         #: μ per indenter (0: frictionless, the default; physics/friction.py).
         self.friction_coefficients = friction_coefficients(friction, len(indenters))
         self.fmesh, self.history, self.tissues, self.options = fmesh, history, tissues, options

@@ -22,6 +22,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import signal
+import sys
 import threading
 import time
 import warnings
@@ -211,10 +212,23 @@ def run_side_by_side(jobs: list[tuple[Scene, Path]], progress: bool = True) -> N
     try:
         for i, (scene, out) in enumerate(jobs):
             if i % groups == colour:
-                run_scene(scene, out, progress=progress and comm.rank == 0, comm=comm)
+                _run_in_group(scene, out, progress and comm.rank == 0, comm)
     finally:
         world.barrier()
         comm.Free()
+
+
+def _run_in_group(scene: Scene, out: Path, progress: bool, comm: MPI.Comm) -> None:
+    """One side-by-side run; a failure is said at once (the group then waits for the others'
+    runs to end before raising it), not only when every group is done."""
+    try:
+        run_scene(scene, out, progress=progress, comm=comm)
+    except BaseException as error:
+        if comm.rank == 0:
+            print(f"{scene.name} into {out} stopped: {type(error).__name__}: {error}; the "
+                  "runs of the other ranks go on, then this error is raised.",
+                  file=sys.stderr, flush=True)
+        raise
 
 
 class Run:

@@ -183,6 +183,19 @@ def _problem(scene, fmesh, tissues=WU2004, **options):
                             ModelOptions(**options))
 
 
+def test_a_problem_waits_for_a_form_another_process_compiles(scene, fmesh, monkeypatch):
+    # Runs side by side (one per rank) compile the same output forms at once on a cold cache:
+    # with FFCx's 10 s wait one rank gave up and sat in a collective until the other's runs
+    # ended. Every form a problem's run compiles (2D or 3D, Newton or output) waits longer.
+    from dolfinx import jit
+
+    defaults = dict(jit.DOLFINX_DEFAULT_JIT_OPTIONS)
+    monkeypatch.setattr(jit, "DOLFINX_DEFAULT_JIT_OPTIONS", defaults)
+    defaults["timeout"] = (10, "Timeout for JIT compilation")  # FFCx's own default
+    _problem(scene, fmesh, subcutaneous="drained")
+    assert jit.get_options()["timeout"] >= 600, "a compile can take minutes: wait >= 10 min"
+
+
 @pytest.mark.parametrize(("options", "keys"), [
     ({}, {"u", "u_n", "u_nm1", "p"} | QLV_STATES),  # u_nm1: the biphasic rate (BDF2)
     ({"subcutaneous": "undrained", "skin_viscoelastic": False}, {"u", "u_n", "p"}),

@@ -253,3 +253,21 @@ def test_a_signal_stops_a_real_run_and_resume_finishes_it(finished, tmp_path, ra
     for name in FIELDS:
         assert bp_times(out / f"{name}.bp") == pytest.approx([0.2, 1.0], abs=1e-12), name
     assert not list(out.glob("*-from-*"))
+
+
+def test_a_side_by_side_run_that_fails_says_so_at_once_then_raises(monkeypatch, capsys,
+                                                                    tmp_path):
+    # Side by side under MPI, a group whose run fails waits in a collective until the other
+    # groups' runs end (hours, for the 3D acuity study) before raising: its error must be
+    # printed when it happens, naming the run.
+    import fingertip_dolfinx.runner as runner
+
+    def fails(scene, out, **_):
+        raise TimeoutError("JIT compilation timed out")
+
+    monkeypatch.setattr(runner, "run_scene", fails)
+    scene = load_scene("1pt")
+    with pytest.raises(TimeoutError):
+        runner.run_side_by_side([(scene, tmp_path / "a")], progress=False)
+    said = capsys.readouterr().err
+    assert "1pt" in said and str(tmp_path / "a") in said and "timed out" in said
