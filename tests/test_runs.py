@@ -172,6 +172,17 @@ def test_the_api_raises_a_keyboard_interrupt_after_writing_the_record(tmp_path, 
     """A SIGINT during a step of `run_scene`: the step ends, the files and summary.json are
     written, and RunInterrupted (a KeyboardInterrupt) reaches the caller; the handler that was
     there before the run is back (Python's own, or whatever an earlier gmsh call left)."""
+    # A process started in the background by a shell without job control inherits SIGINT
+    # ignored, and a run leaves an ignored signal ignored (Interrupts): start from Python's own
+    # handler, as in a terminal.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        _interrupted_in_step_two(tmp_path, monkeypatch)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _interrupted_in_step_two(tmp_path, monkeypatch):
     before = signal.getsignal(signal.SIGINT)
     on_step = Run.on_step
 
