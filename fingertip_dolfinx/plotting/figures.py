@@ -211,19 +211,22 @@ def plot_friction(stick_slip: dict, history: dict, path: Path, mu: float,
     t = np.concatenate([[0.0], history["time_s"]])
     column, unit = force_column(history)
     normal = np.abs(np.concatenate([[0.0], history[column]]))
-    factor, label = display_unit(f"force ({unit})", float(np.max(normal)))
     tangential = np.abs(np.concatenate([[0.0], history[f"tangential_{column}"]]))
-    ax_f.plot(t, factor * normal, "k-", label="normal force")
-    ax_f.plot(t, factor * tangential, "o-", ms=3, color=STATE_COLOURS[1],
-              label="tangential force")
-    ax_f.plot(t, factor * mu * normal, "--", color="0.4",
-              label=f"μ × normal force (μ = {mu:g})")
-    ax_f.set_ylabel(label)
-    ax_f.set_xlabel("time (s)")
-    ax_f.legend(fontsize=8)
-    ax_f.grid(alpha=0.3)
+    _coulomb_panel(ax_f, t, normal, tangential, mu, f"force ({unit})", "tangential force")
     fig.tight_layout()
     fig.savefig(path, dpi=150)
+
+
+def _coulomb_panel(ax, t, normal, tangential, mu: float, quantity: str, name: str) -> None:
+    """The normal and tangential forces against time with Coulomb's bound μ × normal."""
+    factor, label = display_unit(quantity, float(np.max(normal)))
+    ax.plot(t, factor * normal, "k-", label="normal force")
+    ax.plot(t, factor * tangential, "o-", ms=3, color=STATE_COLOURS[1], label=name)
+    ax.plot(t, factor * mu * normal, "--", color="0.4", label=f"μ × normal force (μ = {mu:g})")
+    ax.set_ylabel(label)
+    ax.set_xlabel("time (s)")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
 
 
 def plot_friction_3d(history: dict, path: Path, mu: float, title: str = "") -> None:
@@ -244,16 +247,8 @@ def plot_friction_3d(history: dict, path: Path, mu: float, title: str = "") -> N
     normal = np.abs(np.concatenate([[0.0], history["force_N"]]))
     tangential = np.concatenate([[0.0], np.hypot(history["tangential_x_force_N"],
                                                  history["tangential_z_force_N"])])
-    factor, label = display_unit("force (N)", float(np.max(normal)))
-    ax_f.plot(t, factor * normal, "k-", label="normal force")
-    ax_f.plot(t, factor * tangential, "o-", ms=3, color=STATE_COLOURS[1],
-              label="tangential force |(F_x, F_z)|")
-    ax_f.plot(t, factor * mu * normal, "--", color="0.4",
-              label=f"μ × normal force (μ = {mu:g})")
-    ax_f.set_ylabel(label)
-    ax_f.set_xlabel("time (s)")
-    ax_f.legend(fontsize=8)
-    ax_f.grid(alpha=0.3)
+    _coulomb_panel(ax_f, t, normal, tangential, mu, "force (N)",
+                   "tangential force |(F_x, F_z)|")
     fig.tight_layout()
     fig.savefig(path, dpi=150)
 

@@ -161,15 +161,24 @@ def drag(problem: CattaneoMindlin, h_contact: float, shifts, *, press_steps: int
     newton = newton_problem(built.residual, built.u, built.bcs, prefix,
                             **{"snes_rtol": 1e-10, "snes_atol": 1e-13, "snes_max_it": 80,
                                **snes})
-    path = [(0.0, problem.depth * k / press_steps) for k in range(1, press_steps + 1)]
-    path += [(float(s), problem.depth) for s in shifts]
+    return press_and_drag(built, newton, problem.depth, press_steps, shifts,
+                          lambda x_tip, its: _drag_row(problem, built, x_tip, its))
+
+
+def press_and_drag(built, newton, depth: float, press_steps: int, shifts, row) -> list[dict]:
+    """Press `built`'s indenter to `depth` in `press_steps` equal steps, then move it along x
+    through `shifts` (mm) at that depth, one Newton solve each; `row(x_tip, iterations)` after
+    each converged step, before the friction's slip is accepted (the rows measure the step's
+    slip and dissipation). Raises if a step does not converge."""
+    path = [(0.0, depth * k / press_steps) for k in range(1, press_steps + 1)]
+    path += [(float(s), depth) for s in shifts]
     rows = []
     for x_tip, y_tip in path:
         built.obstacle.x_tip.value, built.obstacle.y_tip.value = x_tip, y_tip
         newton.solve()
         if newton.solver.getConvergedReason() <= 0:
             raise RuntimeError(f"Newton failed at x_tip = {x_tip:g} mm, y_tip = {y_tip:g} mm")
-        rows.append(_drag_row(problem, built, x_tip, newton.solver.getIterationNumber()))
+        rows.append(row(x_tip, newton.solver.getIterationNumber()))
         built.friction.mark_accepted()  # after measuring: the slip is the step's
     return rows
 

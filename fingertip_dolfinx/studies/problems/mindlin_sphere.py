@@ -15,7 +15,7 @@ from ...geometry.indenters import Sphere
 from ...physics.contact import NitscheContact, Obstacle
 from ...physics.friction import CoulombFriction
 from .hertz import HertzSphere
-from .mindlin import stick_halfwidth
+from .mindlin import press_and_drag, stick_halfwidth
 
 
 @dataclass(frozen=True)
@@ -167,17 +167,8 @@ def drag_sphere(problem: MindlinSphere, h_contact: float, shifts, *, press_steps
     newton = newton_problem(built.residual, built.u, built.bcs, prefix,
                             **{"snes_rtol": 1e-10, "snes_atol": 1e-13, "snes_max_it": 80,
                                **snes})
-    path = [(0.0, problem.depth * k / press_steps) for k in range(1, press_steps + 1)]
-    path += [(float(s), problem.depth) for s in shifts]
-    rows = []
-    for x_tip, y_tip in path:
-        built.obstacle.x_tip.value, built.obstacle.y_tip.value = x_tip, y_tip
-        newton.solve()
-        if newton.solver.getConvergedReason() <= 0:
-            raise RuntimeError(f"Newton failed at x_tip = {x_tip:g} mm, y_tip = {y_tip:g} mm")
-        rows.append(_sphere_row(problem, built, x_tip, newton.solver.getIterationNumber()))
-        built.friction.mark_accepted()  # after measuring: the slip is the step's
-    return rows
+    return press_and_drag(built, newton, problem.depth, press_steps, shifts,
+                          lambda x_tip, its: _sphere_row(problem, built, x_tip, its))
 
 
 def _sphere_row(problem: MindlinSphere, built: SphereBlock, x_tip: float, its: int) -> dict:
