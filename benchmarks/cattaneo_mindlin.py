@@ -1,15 +1,21 @@
 """Cattaneo–Mindlin in plane strain (studies.problems.CattaneoMindlin): a rigid cylinder pressed
 into an elastic block with Coulomb friction (physics/friction.py), then dragged along it; the
-stick half-width c against c = a sqrt(1 − Q/(μP)) on a ladder of contact mesh sizes, and gross
+stick half-width c against c = a sqrt(1 − Q/(μP)) on a ladder of contact mesh sizes, the
+tangential traction against Cattaneo–Mindlin's q(x) and the pressure against Hertz's, and gross
 slip Q = μP.
 
-Run: `python benchmarks/cattaneo_mindlin.py` (serial; ~1.5 min on the shared machine). Prints
-one row per step: the mesh (h = a/n at the contact), the cylinder's shift, Q/(μP), c/a measured
-and in theory, their difference over a, the mean |q − q_th| of the tangential traction
-from Cattaneo–Mindlin's q(x) over the contact (|x| < a, the sample points) relative to the mean
-|q_th| (an L1 distance), and the Newton iterations.
+Run: `python benchmarks/cattaneo_mindlin.py` (serial; ~1.5 min on the shared machine): the
+default block (ν = 0.49, P2 displacement, R = 1 mm) on a/2.5, a/5, a/10.
+`python benchmarks/cattaneo_mindlin.py exact` (~5 min): `CattaneoMindlin.exact()`, the block on
+which the closed form is exact (ν = 1/2, Taylor–Hood P2/P1, R = 10 mm), on a/2.5 to a/20.
+
+Prints one row per step: the mesh (h = a/n at the contact), the cylinder's shift, Q/(μP), c/a
+measured and in theory, their difference over a, the L1 distance ∫|q − q_th| dx / ∫|q_th| dx
+of the tangential traction from Cattaneo–Mindlin's over the contact face (`mindlin.l1_distance`),
+the same for the pressure against Hertz's p0 sqrt(1 − x²/a²), and the Newton iterations.
 """
 
+import sys
 import time
 
 from mpi4py import MPI
@@ -17,25 +23,33 @@ from mpi4py import MPI
 import fingertip_dolfinx  # noqa: F401
 from fingertip_dolfinx.studies.problems import CattaneoMindlin, drag
 
-#: Shifts of the cylinder (mm): Q/(μP) ≈ 0.22, 0.44, 0.66, 0.86, then gross slip.
+#: Shifts of the cylinder (mm) on R = 1 mm: Q/(μP) ≈ 0.22, 0.44, 0.66, 0.86, then gross slip.
+#: At the same a the tangential compliance is the same and Q ∝ P ∝ 1/R: on R the shifts for
+#: the same Q/(μP) are these over R.
 SHIFTS = (2e-4, 4e-4, 6e-4, 8e-4, 1.2e-3)
 
 
-def run(problem: CattaneoMindlin, n: float) -> None:
+def run(problem: CattaneoMindlin, n: float, name: str) -> None:
     start = time.perf_counter()
-    rows = drag(problem, problem.a_target / n, SHIFTS, prefix=f"bench_mindlin_{n}_".replace(
+    shifts = tuple(s / problem.R for s in SHIFTS)
+    rows = drag(problem, problem.a_target / n, shifts, prefix=f"bench_{name}_{n}_".replace(
         ".", "_"), comm=MPI.COMM_WORLD)
     for r in rows:
-        print(f"h = a/{n:<4g} cells {r['cells']:5d}  shift {r['shift'] * 1e3:4.2f} µm"
+        # pressed (shift 0) the closed form's q is 0: no relative distance
+        q = f"{r['q_error']:.4f}" if r["shift"] > 0 else "  -   "
+        print(f"h = a/{n:<4g} cells {r['cells']:5d}  shift {r['shift'] * 1e3:6.4f} µm"
               f"  Q/(μP) {r['ratio']:.4f}  c/a {r['c'] / r['a']:.4f}"
               f"  theory {r['c_theory'] / r['a']:.4f}"
               f"  (c − c_th)/a {(r['c'] - r['c_theory']) / r['a']:+.4f}"
-              f"  |q − q_th|/|q_th| {r['q_error']:.4f}"
+              f"  L1 q {q}  L1 p {r['p_error']:.4f}"
               f"  its {r['newton_iterations']}", flush=True)
     print(f"  {time.perf_counter() - start:.1f} s", flush=True)
 
 
 if __name__ == "__main__":
-    problem = CattaneoMindlin()
-    for n in (2.5, 5.0, 10.0):
-        run(problem, n)
+    if sys.argv[1:] == ["exact"]:
+        for n in (2.5, 5.0, 10.0, 20.0):
+            run(CattaneoMindlin.exact(), n, "exact")
+    else:
+        for n in (2.5, 5.0, 10.0):
+            run(CattaneoMindlin(), n, "mindlin")

@@ -67,6 +67,66 @@ def test_stick_zone_converges_with_the_mesh():
     assert errors[2] < errors[0] and errors[2] < 0.03, errors
 
 
+#: The block on which the closed form is exact as the mesh is refined: incompressible (β = 0,
+#: no coupling), Taylor–Hood, R = 10 mm (a/R = 0.002: the pressure's x-share negligible).
+EXACT = CattaneoMindlin.exact()
+#: The same Q/(μP) ≈ 0.44, 0.86 and gross slip as SHIFTS: at the same a, Q ∝ P ∝ 1/R.
+EXACT_SHIFTS = tuple(s / EXACT.R for s in SHIFTS)
+
+
+@cache
+def dragged_exact(n: float) -> tuple[dict, ...]:
+    """`CattaneoMindlin.exact()` pressed (2 steps) and dragged through EXACT_SHIFTS, a/n."""
+    return tuple(drag(EXACT, EXACT.a_target / n, EXACT_SHIFTS,
+                      prefix=f"exact_{n}_".replace(".", "_")))
+
+
+def test_the_incompressible_block_matches_cattaneo_mindlin_on_a_coarse_mesh():
+    rows = dragged_exact(2.5)
+    partial = [r for r in rows if 0.1 < r["ratio"] < 0.95]
+    assert len(partial) == 2, [r["ratio"] for r in rows]
+    for r in partial:  # the stick edge to a quarter element, h/4 = 0.1 a (measured 0.03-0.05)
+        assert abs(r["c"] - r["c_theory"]) / r["a"] < 0.1, r["ratio"]
+        # five elements across the contact: q and p (square-root edges, the active set edge
+        # inside an element) within 15 % and 5 % in L1 (measured 0.04-0.09 and 0.02-0.03)
+        assert r["q_error"] < 0.15 and r["p_error"] < 0.05, r
+    # gross slip: Q/(μP) − 1 is the cylinder's tilt over the contact, (a/R)² = 4e-6 on R = 10 mm
+    assert rows[-1]["c"] == 0.0 and rows[-1]["ratio"] == pytest.approx(1.0, abs=1e-4)
+
+
+@pytest.mark.slow
+def test_the_tangential_traction_and_the_pressure_converge_on_the_incompressible_block():
+    coarse, fine = ([r for r in dragged_exact(n) if r["shift"] > 0] for n in (2.5, 10))
+    for c, f in zip(coarse, fine):
+        # a quarter of h (a/2.5 to a/10) at least halves both L1 distances (a rate >= 0.5;
+        # measured 3-4x, q's rate ~0.9 from a/2.5 to a/20: the benchmarks page)
+        assert f["q_error"] < c["q_error"] / 2 and f["p_error"] < c["p_error"] / 2, (c, f)
+        # at a/10: q within 4 %, p within 1 %, c within 0.02 a (measured 2.8 %, 0.7 %, 0.01 a)
+        assert f["q_error"] < 0.04 and f["p_error"] < 0.01, f
+        assert abs(f["c"] - f["c_theory"]) < 0.02 * f["a"], f
+
+
+def test_an_incompressible_block_needs_the_mixed_element():
+    with pytest.raises(InputError, match="mixed"):
+        CattaneoMindlin(nu=0.5)  # the displacement element's λ is infinite
+    with pytest.raises(InputError, match="mixed"):
+        CattaneoMindlin(nu=0.0, mixed=True)  # p = −λ tr ε needs λ > 0
+    assert EXACT.nu == 0.5 and EXACT.mixed and EXACT.modulus == pytest.approx(4 / 3)
+
+
+def test_the_l1_distance_weighs_the_points_by_the_facets_they_span():
+    from fingertip_dolfinx.studies.problems.mindlin import l1_distance
+
+    # a semi-ellipse 10 % off on x > 0 only, and 0.05 where it is 0 on 1 < x < 1.2: exactly
+    # (0.1 π/4 + 0.05 × 0.2)/(π/2). The points crowd on x < 0 (fine facets there): a plain
+    # mean over the points within |x| < 1 weighs the error by 1/11 and gives 0.009
+    x = np.concatenate([np.linspace(-1.5, 0.0, 3001), np.linspace(0.0, 1.5, 301)])
+    theory = np.sqrt(np.clip(1 - x**2, 0, None))
+    values = theory * np.where(x > 0, 1.1, 1.0) + np.where((x > 1) & (x < 1.2), 0.05, 0.0)
+    exact = (0.1 * np.pi / 4 + 0.05 * 0.2) / (np.pi / 2)
+    assert l1_distance(x, values, theory) == pytest.approx(exact, rel=1e-2)
+
+
 def _hertz_forces(friction_mu: float | None) -> tuple[float, np.ndarray]:
     """The Hertz half block pressed in 2 steps: the cylinder's force and the displacement; with
     `friction_mu`, its obstacle has an x_tip Constant and a CoulombFriction of that μ is added."""

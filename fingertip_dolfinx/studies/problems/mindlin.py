@@ -11,6 +11,7 @@ import numpy as np
 import ufl
 from dolfinx import fem, mesh
 
+from ...errors import InputError
 from ...geometry.indenters import Cylinder
 from ...physics.contact import NitscheContact, Obstacle
 from ...physics.friction import CoulombFriction, contact_state
@@ -32,11 +33,48 @@ class CattaneoMindlin(Hertz):
     The closed form neglects the tangential traction's effect on the pressure (Goodman's
     approximation), exact when the two bodies' second Dundurs constant β vanishes; for a rigid
     indenter β = (1 − 2ν)/(2(1 − ν)), so ν defaults to 0.49 (β = 0.0196), nearly incompressible
-    (the P2 displacement does not lock at this ν).
+    (the P2 displacement does not lock at this ν, but its stress, hence Nitsche's pressure, is
+    poor). `mixed`: Taylor–Hood P2/P1 (u, p) with σ = 2G ε − p I and tr ε + p/λ = 0, stable
+    up to ν = 1/2, where β = 0 and the closed form is exact (`CattaneoMindlin.exact()`).
     """
 
     nu: float = 0.49
     mu: float = 0.5  # the friction coefficient
+    mixed: bool = False  # Taylor–Hood (u, p) instead of the displacement alone
+
+    def __post_init__(self):
+        # λ is infinite at ν = 1/2: the displacement element has no stress there, the mixed one
+        # takes 1/λ = 0 (and needs λ > 0, ν > 0, for its p = −λ tr ε)
+        if not (0.0 < self.nu <= 0.5 if self.mixed else -1.0 < self.nu < 0.5):
+            raise InputError("CattaneoMindlin.nu", f"ν = {self.nu!r} is outside "
+                             f"{'(0, 0.5]' if self.mixed else '(−1, 0.5)'}.",
+                             "use −1 < ν < 0.5, or mixed=True with 0 < ν <= 0.5 (0.5: "
+                             "incompressible).")
+
+    @classmethod
+    def exact(cls, **fields) -> CattaneoMindlin:
+        """The block on which the closed form is exact in the limit of a fine mesh: the two
+        approximations it rests on besides the half-space (a/L = 0.005) made exact or small.
+
+        - Goodman's (no coupling of pressure and tangential traction): exact at ν = 1/2,
+          β = 0 (Johnson §7.1); Taylor–Hood P2/P1, since the displacement alone has no stress
+          there.
+        - Hertz's small slopes: the half-space's tangential load is the friction's alone. The
+          pressure acts along the cylinder's normal, so it has an x-share p n_x ≈ p x/R, an
+          antisymmetric tangential load of order (a/R) p0 that the closed form leaves out (on
+          R = 1 mm it tilts q across the stick zone by ~±0.03 μ p0). R = 10 mm makes
+          a/R = 0.002, pressed 0.12 µm for the same a ≈ 0.0205 mm (P ∝ a²/R: the depth and
+          the shifts for a given Q/(μP) scale as 1/R).
+        """
+        return cls(**{"nu": 0.5, "mixed": True, "R": 10.0, "depth": 1.2e-4, **fields})
+
+    @property
+    def modulus(self) -> float:
+        """M of Nitsche's γ = γ0 M/h (MPa): the P-wave modulus λ + 2G of the displacement
+        element; mixed, E* = E/(1 − ν²), the plane-strain modulus that sets a half-space's
+        normal stiffness (finite at ν = 1/2, where λ + 2G is not; the pressure unknown carries
+        the volumetric stiffness)."""
+        return self.E / (1 - self.nu**2) if self.mixed else super().modulus
 
     @property
     def shear_modulus(self) -> float:
@@ -73,30 +111,48 @@ class CattaneoMindlin(Hertz):
                 gmsh.model.addPhysicalGroup(1, [curve[1]], tag)
         gmsh.model.addPhysicalGroup(2, [1], 1)
 
-    def block(self, domain, facet_tags, *, gamma0: float = 10.0,
-              method: str = "nitsche", gamma_ratio: float = 1.0) -> MindlinBlock:
-        """The P2 displacement, the cylinder (touching at the origin, movable in x and y), the
-        contact and friction terms, the residual and the clamped top."""
+    def _elasticity(self, domain):
+        """(u, p or None, the stress, the test function v, the volume residuals): the P2
+        displacement alone, or mixed with the P1 pressure p = −λ tr ε (Taylor–Hood), whose
+        residual −∫ (tr ε + p/λ) q dx keeps its (p, p) block at 1/λ = 0 (a Constant)."""
         V = fem.functionspace(domain, ("Lagrange", 2, (2,)))
         u, v = fem.Function(V), ufl.TestFunction(V)
-        P = self.stress(u)
+        if not self.mixed:
+            P = self.stress(u)
+            return u, None, P, v, [ufl.inner(P, ufl.grad(v)) * ufl.dx]
+        p = fem.Function(fem.functionspace(domain, ("Lagrange", 1)), name="pressure")
+        q = ufl.TestFunction(p.function_space)
+        inverse_lambda = fem.Constant(domain, (1 + self.nu) * (1 - 2 * self.nu)
+                                      / (self.E * self.nu))
+        eps = ufl.sym(ufl.grad(u))
+        P = 2 * self.shear_modulus * eps - p * ufl.Identity(2)
+        return u, p, P, v, [ufl.inner(P, ufl.grad(v)) * ufl.dx,
+                            -(ufl.tr(eps) + inverse_lambda * p) * q * ufl.dx]
+
+    def block(self, domain, facet_tags, *, gamma0: float = 10.0,
+              method: str = "nitsche", gamma_ratio: float = 1.0) -> MindlinBlock:
+        """The P2 displacement (with `mixed`, and the P1 pressure), the cylinder (touching at
+        the origin, movable in x and y), the contact and friction terms, the residual and the
+        clamped top."""
+        u, p, P, v, residuals = self._elasticity(domain)
+        V = u.function_space
         obstacle = Obstacle.at(domain, Cylinder(radius=self.R), y_tip=0.0, x_tip=0.0)
         ds = ufl.Measure("ds", domain, subdomain_data=facet_tags)
         contact = NitscheContact(u, P, ds(self.BOTTOM), [obstacle], modulus=self.modulus,
                                  gamma0=gamma0, method=method)
         friction = CoulombFriction(contact, self.mu, gamma_ratio=gamma_ratio)
-        residual = (ufl.inner(P, ufl.grad(v)) * ufl.dx + contact.residual(v)
-                    + friction.residual(v))
+        residuals[0] += contact.residual(v) + friction.residual(v)
         top = fem.locate_dofs_topological(V, 1, facet_tags.find(self.TOP))
         bcs = [fem.dirichletbc(np.zeros(2), top, V)]
-        return MindlinBlock(u, P, obstacle, contact, friction, residual, bcs, facet_tags)
+        residual = residuals if p is not None else residuals[0]
+        return MindlinBlock(u, P, obstacle, contact, friction, residual, bcs, facet_tags, p)
 
 
 @dataclass(frozen=True)
 class MindlinBlock:
-    """A built Cattaneo–Mindlin block: solve `residual` = 0 for `u` with `bcs`, moving the
-    cylinder by `obstacle.y_tip` and `obstacle.x_tip`; `friction.mark_accepted()` after each
-    accepted step."""
+    """A built Cattaneo–Mindlin block: solve `residual` = 0 for `unknowns` (u, or the mixed
+    block's [u, p] and its residuals) with `bcs`, moving the cylinder by `obstacle.y_tip` and
+    `obstacle.x_tip`; `friction.mark_accepted()` after each accepted step."""
 
     u: fem.Function
     P: ufl.core.expr.Expr
@@ -106,6 +162,12 @@ class MindlinBlock:
     residual: ufl.Form
     bcs: list
     facet_tags: mesh.MeshTags
+    p: fem.Function | None = None  # the mixed block's pressure
+
+    @property
+    def unknowns(self):
+        """u, or [u, p] for the mixed block (the residual is then a list too)."""
+        return self.u if self.p is None else [self.u, self.p]
 
     def forces(self) -> tuple[float, float]:
         """(tangential Q along x, normal P along y) the cylinder puts on the block (N/mm)."""
@@ -158,7 +220,7 @@ def drag(problem: CattaneoMindlin, h_contact: float, shifts, *, press_steps: int
 
     domain, tags = problem.mesh(h_contact, comm or MPI.COMM_WORLD)
     built = problem.block(domain, tags, gamma_ratio=problem.shear_modulus / problem.modulus)
-    newton = newton_problem(built.residual, built.u, built.bcs, prefix,
+    newton = newton_problem(built.residual, built.unknowns, built.bcs, prefix,
                             **{"snes_rtol": 1e-10, "snes_atol": 1e-13, "snes_max_it": 80,
                                **snes})
     return press_and_drag(built, newton, problem.depth, press_steps, shifts,
@@ -186,19 +248,28 @@ def press_and_drag(built, newton, depth: float, press_steps: int, shifts, row) -
 def _drag_row(problem: CattaneoMindlin, built: MindlinBlock, x_tip: float, its: int) -> dict:
     Q, P = built.forces()
     profile = built.profile()
-    a, _ = problem.theory(P)
+    a, p0 = problem.theory(P)
     # q(x) about the contact's centre, the cylinder's axis, at the points' current positions;
     # the L1 distance (q and its closed form have square-root edges, where a shift of the
     # edge by δ costs ~sqrt(δ/a) in a root-mean-square but only ~(δ/a)^1.5 in L1)
     x = profile["x"] + profile["u_x"] - x_tip
-    inside = np.abs(x) < a
-    q_theory = problem.traction_theory(x[inside], P, Q)
+    q_theory = problem.traction_theory(x, P, Q)
+    p_theory = p0 * np.sqrt(np.clip(1 - (x / a) ** 2, 0, None))
     return {"shift": x_tip, "P": P, "Q": Q, "ratio": Q / (problem.mu * P), "a": a,
             "c": stick_halfwidth(profile["x"], profile["margin"]),
             "c_theory": problem.stick_theory(P, Q), "newton_iterations": its,
-            "q_error": float(np.mean(np.abs(profile["q"][inside] - q_theory))
-                             / np.mean(np.abs(q_theory))),
-            "x": profile["x"], "margin": profile["margin"],
+            "q_error": l1_distance(x, profile["q"], q_theory),
+            "p_error": l1_distance(x, profile["p"], p_theory),
+            "x": profile["x"], "margin": profile["margin"], "x_axis": x,
+            "q": profile["q"], "p": profile["p"],
             "state": contact_state(profile["p"], profile["margin"]),
             "dissipated": built.friction.dissipated(),
             "cells": built.u.function_space.mesh.topology.index_map(2).size_global}
+
+
+def l1_distance(x: np.ndarray, values: np.ndarray, theory: np.ndarray) -> float:
+    """∫ |values − theory| dx / ∫ |theory| dx over the sampled face (x sorted, a facet's end
+    points once per facet): the trapezoidal rule on the sample points, so that unequal
+    facets weigh by their length, and the whole face counted (a traction outside the
+    closed form's contact is error too)."""
+    return float(np.trapezoid(np.abs(values - theory), x) / np.trapezoid(np.abs(theory), x))

@@ -30,8 +30,10 @@ def graded(s: np.ndarray, ratio: float) -> np.ndarray:
 def newton_problem(F, u, bcs, prefix: str, **options) -> NonlinearProblem:
     """A NonlinearProblem with the time stepper's SNES set-up (`stepping.DEFAULT_PETSC_OPTIONS`:
     Newton with line search, direct LU) and `options` on top, e.g. snes_rtol=1e-12.
-    `prefix` must be unique per problem (PETSc options are global)."""
-    return NonlinearProblem(F, u, bcs=bcs, petsc_options_prefix=prefix,
+    `prefix` must be unique per problem (PETSc options are global). F and u may be lists (a
+    mixed problem): one monolithic matrix, as the time stepper's."""
+    kind = "mpi" if isinstance(u, list | tuple) else None
+    return NonlinearProblem(F, u, bcs=bcs, petsc_options_prefix=prefix, kind=kind,
                             petsc_options={**DEFAULT_PETSC_OPTIONS, **options})
 
 
