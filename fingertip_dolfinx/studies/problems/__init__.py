@@ -24,7 +24,9 @@ public name is imported here (`from fingertip_dolfinx.studies.problems import Co
   and peak pressure (forces in N).
 - `mindlin`: `CattaneoMindlin`, the cylinder on a whole block [−L, L] × [0, L] with Coulomb
   friction, pressed then dragged along x (`drag`): Cattaneo–Mindlin's stick half-width
-  c = a sqrt(1 − Q/(μP)) and tangential traction, gross slip at Q = μP; `stick_halfwidth`.
+  c = a sqrt(1 − Q/(μP)) and tangential traction, gross slip at Q = μP; `stick_halfwidth`,
+  `l1_distance`. `CattaneoMindlin.exact()`: incompressible (β = 0), Taylor–Hood (u, p),
+  R = 10 mm, the block on which the traction and the pressure converge to the closed forms.
 - `mindlin_sphere`: `MindlinSphere`, the 3D case, a rigid sphere on a half block (symmetry
   plane z = 0) dragged along x (`drag_sphere`): Mindlin's stick radius
   c = a (1 − Q/(μP))^(1/3) measured along and across the drag (`stick_radii`).
@@ -51,7 +53,7 @@ from .block import (
 )
 from .hertz import Hertz, HertzBlock, HertzSphere, HertzSphereBlock, contact_edge
 from .layered import LAYERS, layered_block
-from .mindlin import CattaneoMindlin, MindlinBlock, drag, stick_halfwidth
+from .mindlin import CattaneoMindlin, MindlinBlock, drag, l1_distance, stick_halfwidth
 from .mindlin_sphere import MindlinSphere, SphereBlock, drag_sphere, stick_radii
 from .platens import (
     ConfinedRelaxation,
@@ -74,7 +76,8 @@ __all__ = [
     "PlatenRelaxation", "PlatenState", "QUADRATURE_DEGREE", "RelaxationRun", "SphereBlock",
     "Terzaghi", "UnconfinedBlock", "UnconfinedRelaxation", "VibratingLayer",
     "confined_drained_state", "confined_drained_stress", "confined_modulus", "contact_edge",
-    "drag", "drag_sphere", "driven_layer", "driven_layer_force", "graded", "layered_block",
-    "newton_problem", "prony_ramp_integral", "run_relaxation", "stick_halfwidth", "stick_radii",
-    "support_reaction", "unconfined_drained_state", "unconfined_undrained_state",
+    "drag", "drag_sphere", "driven_layer", "driven_layer_force", "graded", "l1_distance",
+    "layered_block", "newton_problem", "prony_ramp_integral", "run_relaxation",
+    "stick_halfwidth", "stick_radii", "support_reaction", "unconfined_drained_state",
+    "unconfined_undrained_state",
 ]

@@ -141,7 +141,7 @@ class CattaneoMindlin(Hertz):
         contact = NitscheContact(u, P, ds(self.BOTTOM), [obstacle], modulus=self.modulus,
                                  gamma0=gamma0, method=method)
         friction = CoulombFriction(contact, self.mu, gamma_ratio=gamma_ratio)
-        residuals[0] += contact.residual(v) + friction.residual(v)
+        residuals[0] = residuals[0] + contact.residual(v) + friction.residual(v)
         top = fem.locate_dofs_topological(V, 1, facet_tags.find(self.TOP))
         bcs = [fem.dirichletbc(np.zeros(2), top, V)]
         residual = residuals if p is not None else residuals[0]
