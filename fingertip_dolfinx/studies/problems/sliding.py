@@ -38,6 +38,8 @@ from ...physics.friction import CoulombFriction
 from ...physics.inertia import Inertia
 from ...physics.kinematics import deformation_gradient
 from ...state import SteppableState
+from ...stepping.options import StepOptions
+from ...stepping.stepper import TimeStepper
 from .wiring import QUADRATURE_DEGREE
 
 #: The static press: one step this long (s) makes the mass term ρ a ~ ρ u/Δt² vanish.
@@ -220,8 +222,6 @@ def drag_block(data: SlidingBlock, nx: int, ny: int, dt: float, end: float, *,
     Wood–Bossak–Zienkiewicz scheme of spectral radius `rho_inf`; per step after the press:
     time, the block's mean velocity and kinetic energy (after the step) and the diagnostics
     (before it). Raises if a step fails."""
-    from ...stepping import StepOptions, TimeStepper
-
     block = data.build(nx, ny)
     stepper = TimeStepper(block, StepOptions(
         scheme="generalized-alpha", rho_inf=rho_inf, dt_initial=dt, dt_max=dt, dt_min=dt / 64),
