@@ -103,3 +103,14 @@ def test_the_discrete_energy_balance_of_a_dragged_block_closes():
     # the work at Δt = 0.25 s, 8.4e-4 at 0.125 s)
     lost = [energy_balance(dragged(dt, 0.8))["error_trapezoidal"] for dt in (0.25, 0.125)]
     assert 0 < lost[1] < 0.6 * lost[0] < 1e-2 * balance["work"], lost
+
+
+def test_a_frictional_scene_with_a_nitsche_theta_other_than_0_is_refused_when_loaded():
+    from fingertip_dolfinx.scene import load_scene
+
+    with pytest.raises(InputError, match="contact_theta"):
+        load_scene("shear", ["model.contact_theta=1"])
+    # the penalty, the dynamic route's contact, is taken with friction, inertia on
+    scene = load_scene("slide", ["model.inertia=true", 'steps.scheme="generalized-alpha"',
+                                 'model.contact="penalty"'])
+    assert scene.model.inertia and scene.indenters[0].friction == 0.5
