@@ -359,7 +359,8 @@ class FingertipProblem(SteppableState):
     def history_arrays(self) -> dict[str, np.ndarray]:
         """qlv_h{i}, qlv_S_e_n if the skin is viscoelastic, qlv_subcutaneous_h{i},
         qlv_subcutaneous_S_e_n if the subcutaneous solid is (`model.Laws.history_arrays`);
-        with friction, its friction_u_prev and friction_previous_{i}."""
+        with friction, its friction_u_prev and friction_previous_{i} (and with the penalty
+        contact its friction_elastic_slip)."""
         arrays = self.laws.history_arrays()
         return arrays if self.friction is None else arrays | self.friction.arrays()
 

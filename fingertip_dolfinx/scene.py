@@ -236,6 +236,13 @@ class Scene:
             raise InputError(f"{self.name}: steps.scheme", f"{self.steps.scheme!r} integrates "
                              "no acceleration, but model.inertia is on.",
                              'use scheme = "generalized-alpha", or inertia = false.')
+        m = self.model
+        if m.contact == "nitsche" and m.contact_theta != 0 and any(
+                i.friction > 0 for i in self.indenters):  # physics/friction.py's θ = 0 form
+            raise InputError(f"{self.name}: model.contact_theta", f"friction is written for "
+                             f"Nitsche's θ = 0 (or the penalty), got θ = {m.contact_theta}.",
+                             'use contact_theta = 0, or contact = "penalty" (the choice with '
+                             "inertia).")
         if not self.outputs.times:
             self.outputs = dataclasses.replace(self.outputs, times=(self.history.end_time,))
         self._check_outputs()

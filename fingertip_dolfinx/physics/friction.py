@@ -18,11 +18,22 @@ translation over the step). Nitsche's method with θ = 0 (the contact's own defa
     − ∫ f·v ds
 
 to the residual, next to the contact's − ∫ p n·v ds. With the penalty law (t_n = 0 in the
-contact) t_t is dropped too: f = P_B(μ p)(−γ Δs_t), a tangential spring of stiffness γ while
-sticking (an elastic slip f/γ), Coulomb's bound while slipping.
+contact) there is no traction estimate t_t; its place is taken by the last accepted traction,
+γ w_n with w_n = f_n/γ the elastic slip, kept at the nodes of u's space:
+f = P_B(μ p)(γ (I − n⊗n) w_n − γ Δs_t), a tangential spring of stiffness γ while sticking (the
+elastic slip f/γ accumulates over the steps), Coulomb's bound while slipping. Without w_n (as
+the penalty law was first written) the spring forgot its stretch at every step: a held shear
+let go of the skin, and the stick force −γ Δs_t was a dashpot of viscosity γ Δt, which vanishes
+as Δt → 0 (the test: a block held sheared by a sticking plate keeps its tangential force).
+w_{n+1} = f_{n+1}/γ is interpolated at the nodes: f/γ = P_B(μ p/γ)(...) holds no h (p/γ =
+[−g]_+ for the penalty), so the interpolation is of a field continuous across the cells.
 
-The slip is an increment over one step (the quasi-static time-discrete law): a step ends in
-`mark_accepted`, which moves u_prev and the indenters' previous positions. Coulomb friction
+The slip is an increment over one step (the time-discrete law, the return mapping of an
+implicit step): a step ends in `mark_accepted`, which moves u_prev, the indenters' previous
+positions and (penalty) the elastic slip. Its state is the last accepted one on either time
+route: the dynamic route (inertia.py, α_f = 0) evaluates the contact and the friction at
+t_{n+1} exactly as a quasi-static step does, so its slip increment is the same u_{n+1} − u_n
+relative to the indenter; a rejected or failed attempt leaves the state untouched. Coulomb friction
 with the slip over a step is exact for a monotonic, one-directional load (the
 Cattaneo–Mindlin check, benchmarks page) and first order in the step for a reversing one.
 
@@ -92,6 +103,13 @@ class CoulombFriction:
     """
 
     def __init__(self, contact: NitscheContact, mu, *, gamma_ratio: float = 1.0):
+        if contact.method == "nitsche" and contact.theta != 0:
+            raise InputError(
+                "model.contact_theta", f"friction is written for Nitsche's θ = 0 (or the "
+                f"penalty), got θ = {contact.theta}: its traction has no consistency term, and "
+                "with θ ≠ 0 the contact's would act on the normal part alone.",
+                'use contact_theta = 0, or contact = "penalty" (conservative: the choice with '
+                "inertia).")
         self.contact = contact
         self.gamma = gamma_ratio * contact.gamma
         self.mu = friction_coefficients(mu, len(contact.obstacles))
@@ -99,6 +117,10 @@ class CoulombFriction:
         domain = u.function_space.mesh
         gdim = domain.geometry.dim
         self.u_prev = fem.Function(u.function_space, name="u_prev")
+        #: Penalty law: the elastic slip w_n = f_n/γ (mm) at the last accepted step (None:
+        #: Nitsche's law, whose traction estimate t_t carries the memory).
+        self.elastic_slip = (fem.Function(u.function_space, name="elastic_slip")
+                             if contact.method == "penalty" else None)
         #: Each indenter's (x, y) (3D: (x, y, z)) at the last accepted step.
         self._previous = [fem.Constant(domain, np.zeros(gdim)) for _ in contact.obstacles]
         self._forces, self.trial, self._slips = [], [], []
@@ -136,8 +158,10 @@ class CoulombFriction:
         tangential = ufl.Identity(gdim) - ufl.outer(n, n)
         slip = tangential * (contact.u - self.u_prev - moved)
         self._slips.append(slip)
-        # the penalty law has no traction estimate (t_n = 0 in the contact, t_t = 0 here)
-        t_t = tangential * contact.traction if contact.method == "nitsche" else 0.0 * slip
+        # the penalty law has no traction estimate (t_n = 0 in the contact): the last accepted
+        # traction γ w_n in its place
+        t_t = (tangential * contact.traction if self.elastic_slip is None
+               else self.gamma * (tangential * self.elastic_slip))
         return t_t - self.gamma * slip, self.mu[i] * contact._pressures[i]
 
     def _term(self, i: int, v) -> ufl.Form:
@@ -148,11 +172,26 @@ class CoulombFriction:
         return sum(self._term(i, v) for i, mu in enumerate(self.mu) if mu > 0)
 
     def mark_accepted(self) -> None:
-        """The current state becomes the start of the next slip increment."""
+        """The current state becomes the start of the next slip increment (penalty: its
+        traction, the elastic slip f/γ, first: f depends on the step's slip)."""
+        if self.elastic_slip is not None:
+            self._slip_now.interpolate(self._slip_expression)
+            self.elastic_slip.x.array[:] = self._slip_now.x.array
+            self.elastic_slip.x.scatter_forward()
         self.u_prev.x.array[:] = self.contact.u.x.array
         for previous, obstacle in zip(self._previous, self.contact.obstacles):
             previous.value[:] = [_value(_coordinate(obstacle, k))
                                  for k in range(len(previous.value))]
+
+    @cached_property
+    def _slip_expression(self) -> fem.Expression:
+        """f/γ, the elastic slip of the current state, at the nodes of u's space."""
+        V = self.contact.u.function_space
+        return fem.Expression(self.traction / self.gamma, V.element.interpolation_points)
+
+    @cached_property
+    def _slip_now(self) -> fem.Function:
+        return fem.Function(self.contact.u.function_space)
 
     def advance(self) -> None:
         """The time stepper's name for `mark_accepted` (friction is one of its histories)."""
@@ -161,6 +200,8 @@ class CoulombFriction:
     def arrays(self) -> dict[str, np.ndarray]:
         """The live arrays of the last accepted state, by checkpoint name."""
         arrays = {"friction_u_prev": self.u_prev.x.array}
+        if self.elastic_slip is not None:
+            arrays["friction_elastic_slip"] = self.elastic_slip.x.array
         return arrays | {f"friction_previous_{i}": c.value for i, c in enumerate(self._previous)}
 
     @cached_property

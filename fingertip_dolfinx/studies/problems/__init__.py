@@ -30,6 +30,11 @@ public name is imported here (`from fingertip_dolfinx.studies.problems import Co
 - `mindlin_sphere`: `MindlinSphere`, the 3D case, a rigid sphere on a half block (symmetry
   plane z = 0) dragged along x (`drag_sphere`): Mindlin's stick radius
   c = a (1 − Q/(μP))^(1/3) measured along and across the drag (`stick_radii`).
+- `sliding`: `SlidingBlock`, a linear-elastic block with inertia on rollers, dragged along x
+  by a flat plate through Coulomb friction (`drag_block`, the "generalized-alpha" scheme):
+  gross slip at μ Fn, the mean velocity growing at μ Fn/m, and the discrete energy balance
+  (`energy_balance`): the plate's work against the kinetic, strain and penalty energies and
+  the friction's dissipation.
 - `layered`: `layered_block`, a synthetic 3D `FingertipMesh`, the four tissues as horizontal
   slabs of a half block with the fingertip's tags (pulp below, nail centre strip on top,
   symmetry and proximal-cut planes): the 3D problem's wiring without the fingertip geometry.
@@ -66,12 +71,14 @@ from .platens import (
     unconfined_drained_state,
     unconfined_undrained_state,
 )
+from .sliding import DraggedBlock, SlidingBlock, drag_block, energy_balance
 from .terzaghi import Terzaghi
 from .vibrating import VibratingLayer, driven_layer, driven_layer_force
 from .wiring import QUADRATURE_DEGREE, graded, newton_problem, support_reaction
 
 __all__ = [
-    "CattaneoMindlin", "ConfinedBlock", "ConfinedRelaxation", "Hertz", "HertzBlock",
+    "CattaneoMindlin", "ConfinedBlock", "ConfinedRelaxation", "DraggedBlock", "Hertz",
+    "HertzBlock", "SlidingBlock", "drag_block", "energy_balance",
     "HertzSphere", "HertzSphereBlock", "LAYERS", "MindlinBlock", "MindlinSphere",
     "PlatenRelaxation", "PlatenState", "QUADRATURE_DEGREE", "RelaxationRun", "SphereBlock",
     "Terzaghi", "UnconfinedBlock", "UnconfinedRelaxation", "VibratingLayer",
