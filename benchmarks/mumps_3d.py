@@ -6,11 +6,15 @@ configuration, times the analysis (ordering and symbolic factorisation: once per
 matrix's pattern does not change), the numerical factorisation (once per Newton iteration, after
 the Jacobian is reassembled) and the solve; prints MUMPS's own figures (factor entries
 INFOG(29), flops of the elimination RINFOG(3), memory per rank INFOG(21)/(22)), and the solution's
-distance to the default configuration's (relative, max norm) and its residual ‖J x − b‖/‖b‖.
+distance to the default configuration's (relative, max norm) and its residual ‖J x − b‖/‖b‖;
+for the symmetric factorisations (`SYMMETRIC`: LDLᵀ) also the GMRES iterations around them, and
+MUMPS's delayed and negative pivots INFOG(13), INFOG(12). `--pressure` sets a pore pressure
+(MPa) at the state, so that the Darcy term makes the Jacobian unsymmetric as in a run.
 Wall seconds on rank 0 and CPU seconds per rank (the machine is shared: compare the CPU):
 
     mpiexec -n 2 .venv/bin/python benchmarks/mumps_3d.py
     mpiexec -n 2 .venv/bin/python benchmarks/mumps_3d.py --only default metis blr-1e-8
+    mpiexec -n 2 .venv/bin/python benchmarks/mumps_3d.py --only default ldlt --pressure 5e-4
 
 Configurations (PETSc options under the KSP's prefix): `CONFIGS`.
 """
@@ -43,7 +47,18 @@ CONFIGS = {
     "blr-1e-10": {"icntl_35": 2, "cntl_7": 1e-10},
     "blr-1e-8": {"icntl_35": 2, "cntl_7": 1e-8},
     "blr-1e-6": {"icntl_35": 2, "cntl_7": 1e-6},
+    "ldlt": {},
+    "ldlt-compressed": {"icntl_12": 2},
+    "ldlt-nopivot": {"cntl_1": 0.0},
 }
+#: Configurations that factorise the Jacobian as symmetric: MUMPS LDLᵀ (PETSc's Cholesky of an
+#: AIJ matrix: MUMPS SYM = 2, symmetric indefinite, from the upper triangle) of S J, the Jacobian
+#: with its pressure rows negated (benchmarks/jacobian_symmetry.py: symmetric but for the Darcy
+#: term's derivative), inside GMRES, which solves with S J itself to 1e-12 (right
+#: preconditioning, the true residual): the answer is the system's, whatever the factors
+#: approximate. ICNTL(12) = 2: the compressed ordering for saddle points; CNTL(1) = 0: no
+#: pivoting (static).
+SYMMETRIC = {"ldlt", "ldlt-compressed", "ldlt-nopivot"}
 
 
 def main():
@@ -54,17 +69,22 @@ def main():
     parser.add_argument("--only", nargs="+", default=list(CONFIGS), choices=list(CONFIGS))
     parser.add_argument("--refactor", type=int, default=2,
                         help="numerical factorisations timed per configuration")
+    parser.add_argument("--pressure", type=float, default=0.0,
+                        help="MPa: a smooth pore pressure of this size at the state (0: none, "
+                        "the Jacobian of the earlier table; with a pressure gradient the Darcy "
+                        "term's derivative makes S J unsymmetric)")
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
     scene = load_scene(args.scene, args.overrides)
     out = Path(comm.bcast(tempfile.mkdtemp() if comm.rank == 0 else None))
-    J, b, assemble = jacobian_at_smooth_state(scene, out)
+    J, b, assemble, signs = jacobian_at_smooth_state(scene, out, args.pressure)
     reference = None
     if comm.rank == 0:
         print(f"{scene.name}: {J.getSize()[0]} unknowns, {comm.size} rank(s); load average "
               f"{os.getloadavg()[0]:.2f}; wall s (rank 0) / CPU s (per rank)")
     for name in ["default", *[n for n in args.only if n != "default"]]:
-        x, line = factor_and_solve(name, CONFIGS[name], J, b, assemble, args.refactor)
+        sign = signs if name in SYMMETRIC else None
+        x, line = factor_and_solve(name, CONFIGS[name], J, b, assemble, args.refactor, sign)
         reference = x.copy() if reference is None else reference
         dx = x.copy()
         dx.axpy(-1.0, reference)
@@ -73,24 +93,47 @@ def main():
             print(line, flush=True)
 
 
-def jacobian_at_smooth_state(scene, out: Path):
-    """The scene's Jacobian and residual at a smooth deformed state, and a re-assembler."""
-    nonlinear = smooth_state(scene, out, MPI.COMM_WORLD).stepper.nonlinear
+def jacobian_at_smooth_state(scene, out: Path, pressure: float = 0.0):
+    """The scene's Jacobian and residual at a smooth deformed state (a pore pressure of size
+    `pressure`, MPa, varying over a few mm), a re-assembler, and the signs S (+1 on the
+    displacement rows, −1 on the pressure's)."""
+    import dolfinx.fem.petsc
+
+    job = smooth_state(scene, out, MPI.COMM_WORLD)
+    nonlinear, problem = job.stepper.nonlinear, job.problem
+    if problem.p is not None and pressure:
+        problem.p.interpolate(lambda x: pressure * np.cos(x[0]) * np.cos(0.5 * x[2]))
+        dolfinx.fem.petsc.assign(problem.unknowns, nonlinear.x)
     snes = nonlinear.solver
     J, P, (jacobian, args, kargs) = snes.getJacobian()
     b, (residual, rargs, rkargs) = snes.getFunction()
     residual(snes, nonlinear.x, b, *rargs, **(rkargs or {}))
 
     def assemble():
+        if job.stepper.reuse is not None:
+            job.stepper.reuse.start()  # the scene's Jacobian reuse would keep the old one
         jacobian(snes, nonlinear.x, J, P, *args, **(kargs or {}))
 
     assemble()
-    return J, b, assemble
+    return J, b, assemble, pressure_signs(problem, J)
 
 
-def factor_and_solve(name: str, mumps: dict, J, b, assemble, refactor: int):
+def pressure_signs(problem, J):
+    """The vector S: +1 on the displacement rows of J, −1 on the pore pressure's."""
+    from fingertip_dolfinx.stepping.linear import split_index_sets
+
+    signs = J.createVecLeft()
+    signs.set(1.0)
+    if problem.p is not None:
+        rows = split_index_sets(problem.unknowns, J)[1].getIndices()
+        signs.array[rows - J.getOwnershipRange()[0]] = -1.0
+    return signs
+
+
+def factor_and_solve(name: str, mumps: dict, J, b, assemble, refactor: int, signs=None):
     """Time one configuration: analysis + factorisation, `refactor` more factorisations after
-    a reassembly, a solve; returns the solution and the line to print."""
+    a reassembly, a solve; returns the solution and the line to print. With `signs` (S), the
+    system solved is S J x = S b, by GMRES preconditioned by the LDLᵀ factors of S J."""
     from petsc4py import PETSc
 
     comm = MPI.COMM_WORLD
@@ -98,6 +141,17 @@ def factor_and_solve(name: str, mumps: dict, J, b, assemble, refactor: int):
     db = PETSc.Options()
     options = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps",
                **{f"mat_mumps_{k}": v for k, v in mumps.items()}}
+    if signs is not None:
+        options |= SYMMETRIC_KSP
+        rebuild = assemble
+
+        def assemble():
+            rebuild()
+            J.diagonalScale(L=signs)
+
+        b = b.copy()
+        b.pointwiseMult(b, signs)
+    assemble()
     for k, v in options.items():
         db[prefix + k] = v
     ksp = PETSc.KSP().create(comm)
@@ -119,17 +173,26 @@ def factor_and_solve(name: str, mumps: dict, J, b, assemble, refactor: int):
     entries, flops = F.getMumpsInfog(29), F.getMumpsRinfog(3)
     memory = (F.getMumpsInfog(21), F.getMumpsInfog(22))  # MB: max and total over ranks
     ordering = F.getMumpsInfog(7)
+    extra = f", {ksp.getIterationNumber()} GMRES iteration(s)" if signs is not None else ""
+    extra += (f"; delayed pivots INFOG(13) {F.getMumpsInfog(13)}, negative pivots INFOG(12) "
+               f"{F.getMumpsInfog(12)}")
     num_wall = min(w for w, _ in numeric) if numeric else float("nan")
     num_cpu = np.array([c for _, c in numeric]).min(axis=0) if numeric else [float("nan")]
     line = (f"{name:10s} (INFOG(7) ordering {ordering}): analysis+factorisation "
             f"{_fmt(first)}; factorisation {num_wall:.2f} / "
             f"{', '.join(f'{c:.2f}' for c in num_cpu)}; solve {_fmt(solve)}; "
             f"factor entries {entries:.3g}, flops {flops:.3g}, memory max/total {memory[0]}/"
-            f"{memory[1]} MB; residual {r.norm() / b.norm():.1e}")
+            f"{memory[1]} MB; residual {r.norm() / b.norm():.1e}{extra}")
     ksp.destroy()
     for k in options:
         db.delValue(prefix + k)
     return x, line
+
+
+#: The Krylov wrapper of a symmetric factorisation (SYMMETRIC).
+SYMMETRIC_KSP = {"ksp_type": "gmres", "pc_type": "cholesky", "ksp_pc_side": "right",
+                 "ksp_norm_type": "unpreconditioned", "ksp_rtol": 1e-12, "ksp_atol": 0.0,
+                 "ksp_max_it": 30}
 
 
 def _timed(call) -> tuple[float, list[float]]:
