@@ -14,15 +14,15 @@ displacement space: its near null space) and the pressure Schur complement
 S = C + B K⁻¹ Bᵀ by GAMG on S_p = C + M/(λ + 2μ) (M the pressure mass matrix, λ + 2μ the
 subcutaneous solid's P-wave modulus; C as assembled), "full" factorisation: of the Schur
 approximations and factorisations tried, the one with the fewest Krylov iterations. Without a
-pore law there is no split: FGMRES on K alone (CG is not safe: contact makes K non-symmetric,
-Nitsche θ = 0). With bone and nail elastic, K itself is split into the stiff regions' dofs (LU)
-and the soft tissues' (GAMG), block Gauss–Seidel: GAMG's coarse aggregates represent the bending
-of the thin, stiff nail plate poorly (110-400 Krylov iterations per Newton step on K whole; with
-the split as many as with bone and nail rigid). Newton is inexact (Eisenstat–Walker): each
-linear solve is as tight as Newton's progress needs, not 1e-10. MUMPS stays the default: in 2D
-it is faster at these sizes (LU fill ~ n log n); the Krylov route is for 3D. The measurements
-behind these choices: docs/benchmarks/measurements.md, "Linear solvers inside Newton", and
-docs/benchmarks/solvers-3d.md.
+pore law there is no split: FGMRES on K alone (CG is not safe: Nitsche's θ = 0 contact, the default,
+makes K non-symmetric; the penalty's K is symmetric to round-off, benchmarks/jacobian_symmetry.py).
+With bone and nail elastic, K itself is split into the stiff regions' dofs (LU) and the soft
+tissues' (GAMG), block Gauss–Seidel: GAMG's coarse aggregates represent the bending of the thin,
+stiff nail plate poorly (110-400 Krylov iterations per Newton step on K whole; with the split as
+many as with bone and nail rigid). Newton is inexact (Eisenstat–Walker): each linear solve is as
+tight as Newton's progress needs, not 1e-10. MUMPS stays the default: in 2D it is faster at these
+sizes (LU fill ~ n log n); the Krylov route is for 3D. The measurements behind these choices:
+docs/benchmarks/measurements.md, "Linear solvers inside Newton", and docs/benchmarks/solvers-3d.md.
 
 Both are chosen by scene data (`[solver] linear = "direct" | "iterative"`, checked by
 `options.check_linear`, which needs no PETSc); any PETSc option
