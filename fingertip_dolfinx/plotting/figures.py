@@ -195,18 +195,7 @@ def plot_friction(stick_slip: dict, history: dict, path: Path, mu: float,
     force, the tangential force and Coulomb's bound μ times the normal force, against time."""
     fig = Figure(figsize=(6.4, 6.4))
     ax_m, ax_f = fig.subplots(2, 1, sharex=True, height_ratios=(3, 2))
-    times, x = np.unique(stick_slip["time_s"]), np.unique(stick_slip["x_mm"])
-    state = np.full((len(x), len(times)), np.nan)
-    state[np.searchsorted(x, stick_slip["x_mm"]),
-          np.searchsorted(times, stick_slip["time_s"])] = stick_slip["contact_state"]
-    t_edges = np.concatenate([[0.0], times])
-    x_edges = np.concatenate([[x[0]], 0.5 * (x[1:] + x[:-1]), [x[-1]]])
-    colours = matplotlib.colors.ListedColormap(STATE_COLOURS)
-    ax_m.pcolormesh(t_edges, x_edges, state, cmap=colours, vmin=-0.5, vmax=2.5)
-    ax_m.legend(handles=[Patch(color=c, label=n) for c, n in
-                         zip(STATE_COLOURS, ("free", "slip", "stick"))],
-                loc="upper left", fontsize=8)
-    ax_m.set_ylabel("surface point x (mm, reference)")
+    _state_map(ax_m, stick_slip, "x_mm", "surface point x (mm, reference)")
     ax_m.set_title(title)
     t = np.concatenate([[0.0], history["time_s"]])
     column, unit = force_column(history)
@@ -215,6 +204,23 @@ def plot_friction(stick_slip: dict, history: dict, path: Path, mu: float,
     _coulomb_panel(ax_f, t, normal, tangential, mu, f"force ({unit})", "tangential force")
     fig.tight_layout()
     fig.savefig(path, dpi=150)
+
+
+def _state_map(ax, stick_slip: dict, key: str, label: str) -> None:
+    """Each surface point's state (free, slip, stick) at each step: its reference coordinate
+    `key` against time (a step's state fills the interval that ends at it)."""
+    times, x = np.unique(stick_slip["time_s"]), np.unique(stick_slip[key])
+    state = np.full((len(x), len(times)), np.nan)
+    state[np.searchsorted(x, stick_slip[key]),
+          np.searchsorted(times, stick_slip["time_s"])] = stick_slip["contact_state"]
+    t_edges = np.concatenate([[0.0], times])
+    x_edges = np.concatenate([[x[0]], 0.5 * (x[1:] + x[:-1]), [x[-1]]])
+    colours = matplotlib.colors.ListedColormap(STATE_COLOURS)
+    ax.pcolormesh(t_edges, x_edges, state, cmap=colours, vmin=-0.5, vmax=2.5)
+    ax.legend(handles=[Patch(color=c, label=n) for c, n in
+                       zip(STATE_COLOURS, ("free", "slip", "stick"))],
+              loc="upper left", fontsize=8)
+    ax.set_ylabel(label)
 
 
 def _coulomb_panel(ax, t, normal, tangential, mu: float, quantity: str, name: str) -> None:
@@ -229,12 +235,23 @@ def _coulomb_panel(ax, t, normal, tangential, mu: float, quantity: str, name: st
     ax.grid(alpha=0.3)
 
 
-def plot_friction_3d(history: dict, path: Path, mu: float, title: str = "") -> None:
-    """A 3D run with friction, from history.csv. Above: the contact area and its sticking part
-    against time (a 3D surface has no stick/slip map). Below: the normal force, the tangential
-    force's size |(F_x, F_z)| and Coulomb's bound μ times the normal force."""
-    fig = Figure(figsize=(6.4, 6.4))
-    ax_a, ax_f = fig.subplots(2, 1, sharex=True, height_ratios=(1, 1))
+def plot_friction_3d(history: dict, path: Path, mu: float, title: str = "",
+                     stick_slip: dict | None = None) -> None:
+    """A 3D run with friction, from history.csv (and stick_slip.csv). At the top, given
+    `stick_slip`: the stick/slip map along the finger (z against time, on the line of
+    surface_along.csv). Then the contact area and its sticking part against time; below, the
+    normal force, the tangential force's size |(F_x, F_z)| and Coulomb's bound μ times the
+    normal force."""
+    if stick_slip is None:
+        fig = Figure(figsize=(6.4, 6.4))
+        ax_a, ax_f = fig.subplots(2, 1, sharex=True, height_ratios=(1, 1))
+    else:
+        fig = Figure(figsize=(6.4, 8.8))
+        ax_m, ax_a, ax_f = fig.subplots(3, 1, sharex=True, height_ratios=(3, 2, 2))
+        x = np.unique(stick_slip["x_mm"])
+        _state_map(ax_m, stick_slip, "z_mm", f"surface point z (mm, reference; x = {x[0]:g})")
+        ax_m.set_title(title)
+        title = ""
     t = np.concatenate([[0.0], history["time_s"]])
     for key, colour, label in (("contact_area_mm2", "0.3", "in contact"),
                                ("stick_area_mm2", STATE_COLOURS[2], "sticking")):
