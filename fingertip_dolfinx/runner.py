@@ -374,7 +374,9 @@ class Run:
     def _friction_columns(self) -> tuple[str, ...]:
         """history.csv's tangential force and displacement, the pressure's share of the
         tangential force (ploughing) and the friction's dissipated energy over the step, with
-        friction only (a frictionless run's file stays as it was)."""
+        friction only (a frictionless run's file stays as it was). 3D: the contact and stick
+        areas, and the pressure's share of the normal force (Coulomb's bound on the friction's
+        share of the tangential force, μ times it, on a curved indenter)."""
         if self.problem.friction is None:
             return ()
         force = self.problem.force_keys[0]
@@ -382,7 +384,7 @@ class Run:
         return (*(column for a in axes for column in (
             f"tangential_{a}{force}", f"tangential_{a}displacement_mm",
             f"pressure_tangential_{a}{force}")), self.problem.dissipated_key,
-            *(AREA_KEYS if self.three_d else ()))
+            *((*AREA_KEYS, f"pressure_normal_{force}") if self.three_d else ()))
 
     def on_step(self, report) -> None:
         """Write what the accepted step produced (its state is the converged one)."""
