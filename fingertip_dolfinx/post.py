@@ -389,12 +389,13 @@ class SurfaceFriction:
     FRICTION_SURFACE_COLUMNS_3D). A point takes the values of the contact facet it lies on
     or over (within `reach`: `facets_under`), those at the facet's centroid (as the 2D rows
     are the facets' middles': `Profiles.stick_slip_rows`); a point over none (off the contact
-    surface) has NaN values and the state free (no indenter can touch it there)."""
+    surface) has NaN values and the state free (no indenter can touch it there). The values
+    are the last accepted step's (`CoulombFriction.accepted`): measure after `mark_accepted`."""
 
     def __init__(self, contact, friction):
         self.comm = contact.u.function_space.mesh.comm
-        parts = ufl.as_vector([contact.pressure, *(friction.traction[i] for i in range(3)),
-                               friction.stick_margin])
+        traction, margin = friction.accepted  # measured after the step is accepted
+        parts = ufl.as_vector([contact.pressure, *(traction[i] for i in range(3)), margin])
         self._sampler = contact.surface_sampler(parts, points=np.array([[1.0, 1.0]]) / 3.0)
         self._corners = facet_corners(contact.u.function_space.mesh, contact._facet_entities)
 

@@ -19,8 +19,9 @@ MU = 0.5
 def _cube_on_plate(axis: int, moved: bool):
     """A unit cube pressed 0.01 mm into a plate under its face y = 0 (penalty contact, μ = 0.5),
     then translated rigidly by 0.1 mm along `axis` (0: x, 2: z), the plate with it if `moved`
-    (the whole face sticks) or not (it all slips): the friction's values at the points below
-    (`SurfaceFriction`, rank 0) and the pressure's force on the cube."""
+    (the whole face sticks) or not (it all slips), and that step accepted: the friction's
+    values at the points below (`SurfaceFriction`, rank 0) and the pressure's force on the
+    cube."""
     domain = dmesh.create_unit_cube(MPI.COMM_WORLD, 2, 2, 2)
     u = fem.Function(fem.functionspace(domain, ("Lagrange", 1, (3,))))
     obstacle = Obstacle.at(domain, Plate(), y_tip=0.01, x_tip=0.0, z_tip=0.0)
@@ -29,11 +30,13 @@ def _cube_on_plate(axis: int, moved: bool):
     u.x.array.reshape(-1, 3)[:, axis] = 0.1
     if moved:
         (obstacle.x_tip if axis == 0 else obstacle.z_tip).value = 0.1
+    load = friction.pressure_forces()[0][1]
+    # the step accepted: a run writes its surfaces then (`mark_accepted` moves the slip's start)
+    friction.mark_accepted()
     points = np.array([[0.3, 0.0, 0.2], [0.5, 0.0, 0.5], [0.9, -0.001, 0.7],  # the pressed face
                        [0.5, 1.0, 0.5],  # the top face: on the contact surface, free
                        [0.5, -0.5, 0.5]])  # 0.5 mm below the cube: on no facet
-    values = SurfaceFriction(contact, friction).at(points, reach=0.01)
-    return values, friction.pressure_forces()[0][1]
+    return SurfaceFriction(contact, friction).at(points, reach=0.01), load
 
 
 @pytest.mark.mpi
