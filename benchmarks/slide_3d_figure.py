@@ -66,15 +66,15 @@ def forces(ax, h: dict, steps: np.ndarray, mu: float) -> None:
     ax.grid(alpha=0.3)
 
 
-def path_sites(r: dict, cls: str = "SA1", half_width: float = 0.6) -> list[int]:
-    """The sites of class `cls` within `half_width` of the path (|x| < it, 7 < z < 11 mm)."""
+def path_sites(r: dict, cls: str = "RA", half_width: float = 1.0) -> list[int]:
+    """The sites of class `cls` within `half_width` of the path (|x| < it, 6.5 < z < 10.5 mm)."""
     rows = r["class"] == cls
     first = rows & (r["time_s"] == r["time_s"][rows][0])
-    keep = first & (np.abs(r["x_mm"]) < half_width) & (r["z_mm"] > 7.0) & (r["z_mm"] < 11.0)
+    keep = first & (np.abs(r["x_mm"]) < half_width) & (r["z_mm"] > 6.5) & (r["z_mm"] < 10.5)
     return sorted(r["index"][keep], key=lambda i: r["z_mm"][first & (r["index"] == i)][0])
 
 
-def receptors(ax, run: Path, h: dict, steps: np.ndarray, cls: str = "SA1") -> None:
+def receptors(ax, run: Path, h: dict, steps: np.ndarray, cls: str = "RA") -> None:
     """−σ22 at the sites of class `cls` near the probe's path, against the travel."""
     r = Result(run).receptors()
     travel = dict(zip(np.round(h["time_s"], 12), h[TRAVEL]))
@@ -125,8 +125,8 @@ def main(run: Path, out: Path, mu: float = 0.5) -> None:
     fig, axes = plt.subplots(3, 1, figsize=(6.4, 8.8), sharex=True, constrained_layout=True,
                              height_ratios=(3, 3, 3))
     stick_slip_map(axes[0], run, h, steps)
-    axes[0].set_title(f"slide-3d: round probe (R = 2 mm) pressed 0.5 mm, slid along the "
-                      f"finger at 80 mm/s; μ = {mu:g}", fontsize=9)
+    axes[0].set_title(f"slide-3d: probe (R = 2 mm) pressed 0.5 mm, slid at 80 mm/s; μ = {mu:g}",
+                      fontsize=10)
     forces(axes[1], h, steps, mu)
     receptors(axes[2], run, h, steps)
     fig.savefig(out, dpi=120)

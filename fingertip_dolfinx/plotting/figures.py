@@ -250,6 +250,10 @@ def plot_friction_3d(history: dict, path: Path, mu: float, title: str = "",
         ax_m, ax_a, ax_f = fig.subplots(3, 1, sharex=True, height_ratios=(3, 2, 2))
         x = np.unique(stick_slip["x_mm"])
         _state_map(ax_m, stick_slip, "z_mm", f"surface point z (mm, reference; x = {x[0]:g})")
+        touched = stick_slip["z_mm"][stick_slip["contact_state"] > 0]
+        if len(touched):  # the contact's strip and 2 mm either side, not the whole finger
+            ax_m.set_ylim(max(touched.min() - 2.0, 0.0),
+                          min(touched.max() + 2.0, stick_slip["z_mm"].max()))
         ax_m.set_title(title)
         title = ""
     t = np.concatenate([[0.0], history["time_s"]])
