@@ -95,25 +95,27 @@ def receptors(ax, run: Path, h: dict, steps: np.ndarray, cls: str = "RA") -> Non
 def table(run: Path, h: dict, steps: np.ndarray, mu: float) -> None:
     """The benchmark's table: per step of the slide, the forces' ratios and the areas."""
     s = read_csv(run / "stick_slip.csv")
-    print("| travel (mm) | Fn (mN) | Ft/(μFn) | F_p,z/Fn | (Fz − F_p,z)/(μ F_p,y) | "
-          "contact, stick (mm²) | max over the path of \\|f\\|/(μp) − 1 | D/(μ F_p,y Δz) | its |")
-    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    print("| travel (mm) | Fn (mN) | Fz/(μFn) | F_p,z/Fn | (Fz − F_p,z)/(μ F_p,y) | "
+          "(Fx − F_p,x)/(μ F_p,y) | contact, stick (mm²) | max over the path of \\|f\\|/(μp) − 1 "
+          "| D/(μ F_p,y Δz) | its |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     previous = 0.0
     for k in steps:
         rows = np.isclose(s["time_s"], h["time_s"][k], rtol=0, atol=1e-12) & (
             s["pressure_MPa"] > 0)
         f = np.sqrt(sum(s[f"tangential_traction_{a}_MPa"][rows] ** 2 for a in "xyz"))
         excess = np.max(f / (mu * s["pressure_MPa"][rows]) - 1) if np.any(rows) else np.nan
-        ft = np.hypot(h["tangential_x_force_N"][k], h["tangential_z_force_N"][k])
         friction = h["tangential_z_force_N"][k] - h["pressure_tangential_z_force_N"][k]
+        across = h["tangential_x_force_N"][k] - h["pressure_tangential_x_force_N"][k]
         pn = h["pressure_normal_force_N"][k]
         dz = h[TRAVEL][k] - previous
         previous = h[TRAVEL][k]
         dissipation = h["dissipated_N_mm"][k] / (mu * pn * dz) if dz > 0 else np.nan
         print(f"| {h[TRAVEL][k]:.3g} | {1e3 * h['force_N'][k]:.4g} | "
-              f"{ft / (mu * h['force_N'][k]):.3f} | "
+              f"{h['tangential_z_force_N'][k] / (mu * h['force_N'][k]):.3f} | "
               f"{h['pressure_tangential_z_force_N'][k] / h['force_N'][k]:.3f} | "
-              f"{friction / (mu * pn):.4f} | {h['contact_area_mm2'][k]:.2f}, "
+              f"{friction / (mu * pn):.4f} | {across / (mu * pn):.3f} | "
+              f"{h['contact_area_mm2'][k]:.2f}, "
               f"{h['stick_area_mm2'][k]:.2f} | {excess:.1e} | {dissipation:.3f} | "
               f"{h['newton_iterations'][k]} |")
 

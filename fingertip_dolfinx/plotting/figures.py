@@ -223,12 +223,13 @@ def _state_map(ax, stick_slip: dict, key: str, label: str) -> None:
     ax.set_ylabel(label)
 
 
-def _coulomb_panel(ax, t, normal, tangential, mu: float, quantity: str, name: str) -> None:
+def _coulomb_panel(ax, t, normal, tangential, mu: float, quantity: str, name: str,
+                   normal_name: str = "normal force") -> None:
     """The normal and tangential forces against time with Coulomb's bound μ × normal."""
     factor, label = display_unit(quantity, float(np.max(normal)))
-    ax.plot(t, factor * normal, "k-", label="normal force")
+    ax.plot(t, factor * normal, "k-", label=normal_name)
     ax.plot(t, factor * tangential, "o-", ms=3, color=STATE_COLOURS[1], label=name)
-    ax.plot(t, factor * mu * normal, "--", color="0.4", label=f"μ × normal force (μ = {mu:g})")
+    ax.plot(t, factor * mu * normal, "--", color="0.4", label=f"μ × {normal_name} (μ = {mu:g})")
     ax.set_ylabel(label)
     ax.set_xlabel("time (s)")
     ax.legend(fontsize=8)
@@ -240,8 +241,8 @@ def plot_friction_3d(history: dict, path: Path, mu: float, title: str = "",
     """A 3D run with friction, from history.csv (and stick_slip.csv). At the top, given
     `stick_slip`: the stick/slip map along the finger (z against time, on the line of
     surface_along.csv). Then the contact area and its sticking part against time; below, the
-    normal force, the tangential force's size |(F_x, F_z)| and Coulomb's bound μ times the
-    normal force."""
+    pressure's normal force, the friction's tangential share and Coulomb's bound μ times the
+    former (`_coulomb_forces_3d`)."""
     if stick_slip is None:
         fig = Figure(figsize=(6.4, 6.4))
         ax_a, ax_f = fig.subplots(2, 1, sharex=True, height_ratios=(1, 1))
@@ -265,13 +266,29 @@ def plot_friction_3d(history: dict, path: Path, mu: float, title: str = "",
     ax_a.legend(fontsize=8)
     ax_a.grid(alpha=0.3)
     ax_a.set_title(title)
-    normal = np.abs(np.concatenate([[0.0], history["force_N"]]))
-    tangential = np.concatenate([[0.0], np.hypot(history["tangential_x_force_N"],
-                                                 history["tangential_z_force_N"])])
-    _coulomb_panel(ax_f, t, normal, tangential, mu, "force (N)",
-                   "tangential force |(F_x, F_z)|")
+    _coulomb_panel(ax_f, t, *_coulomb_forces_3d(history), mu, "force (N)",
+                   "friction's tangential share |(F_x − F_p,x, F_z − F_p,z)|"
+                   if "pressure_normal_force_N" in history else "tangential force |(F_x, F_z)|",
+                   "pressure's normal force F_p,y" if "pressure_normal_force_N" in history
+                   else "normal force")
     fig.tight_layout()
     fig.savefig(path, dpi=150)
+
+
+def _coulomb_forces_3d(history: dict) -> tuple[np.ndarray, np.ndarray]:
+    """(normal, tangential) from a 3D history, from t = 0: with the pressure's shares
+    (`pressure_normal_force_N`), the pressure's normal force and the friction traction's
+    tangential share, whose bound μ F_p,y holds on a curved indenter too (to the contact's
+    tilt; a half model's pressure has an x-share, the mirror's); else the total forces."""
+    if "pressure_normal_force_N" not in history:  # a run before that column
+        normal, tangential = history["force_N"], np.hypot(history["tangential_x_force_N"],
+                                                          history["tangential_z_force_N"])
+    else:
+        normal = history["pressure_normal_force_N"]
+        tangential = np.hypot(
+            history["tangential_x_force_N"] - history["pressure_tangential_x_force_N"],
+            history["tangential_z_force_N"] - history["pressure_tangential_z_force_N"])
+    return (np.abs(np.concatenate([[0.0], normal])), np.concatenate([[0.0], tangential]))
 
 
 def plot_surface_profiles(profile: dict, path: Path, title: str = "", along: str = "x") -> None:
