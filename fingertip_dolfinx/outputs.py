@@ -45,6 +45,14 @@ CONTACT_STATES = {0: "free", 1: "slip", 2: "stick"}
 HISTORY_COLUMNS_3D = tuple({"force_N_per_mm": "force_N", "reaction_N_per_mm": "reaction_N"}
                            .get(c, c) for c in HISTORY_COLUMNS)
 SURFACE_COLUMNS_3D = ("x_mm", "z_mm", "time_s", "deflection_mm")  # surface_across/along.csv
+#: With friction (3D): the columns surface_across/along.csv gain and stick_slip.csv (every
+#: step, along the finger on the line x = x_c of surface_along.csv) has: the contact pressure,
+#: the tangential traction's x, y and z parts (on the body, MPa nominal; tangent to the
+#: indenter), the stick margin μp − |q| and the contact state (`CONTACT_STATES`).
+FRICTION_SURFACE_COLUMNS_3D = ("pressure_MPa", "tangential_traction_x_MPa",
+                               "tangential_traction_y_MPa", "tangential_traction_z_MPa",
+                               "stick_margin_MPa", "contact_state")
+STICK_SLIP_COLUMNS_3D = ("x_mm", "z_mm", "time_s") + FRICTION_SURFACE_COLUMNS_3D
 DEPTH_COLUMNS_3D = ("x_mm", "z_mm", "depth_mm", "time_s", "u1_mm", "u2_mm", "u3_mm", "e11",
                     "e22", "e33", "e12", "e_max", "e_min", "sed_MPa", "p_MPa")
 LINE_FORCE_COLUMNS = ("z_mm", "time_s", "force_per_length_N_per_mm")

@@ -15,7 +15,7 @@ import ufl
 from dolfinx import fem, geometry
 from dolfinx import mesh as dmesh
 
-from .outputs import FRICTION_SURFACE_COLUMNS
+from .outputs import FRICTION_SURFACE_COLUMNS, FRICTION_SURFACE_COLUMNS_3D
 from .physics.admissibility import reference_vertices
 from .physics.friction import contact_state
 from .physics.kinematics import hencky_strain, principal_log_strains
@@ -316,6 +316,8 @@ class Profiles3D:
         z = z[a > abs(x_c) + 1e-9]
         self.across = self._surface(tip, x, np.full_like(x, z_c))
         self.along = self._surface(tip, np.full_like(z, x_c), z)
+        # a sample point lies over a contact facet within the chord sag (as `_surface`)
+        self.reach = 1.5 * tip.section.mesh.max_size**2 / (8 * tip.outer.min_curvature_radius)
         self.curves = []
         for d in outputs.depths:
             x0, points = depth_curve(tip.outer, d, w, n, x)
@@ -332,13 +334,32 @@ class Profiles3D:
         return points, PointSampler(self.problem.mesh, points, 1.5 * sag)
 
     def surface_rows(self, t: float, direction: str) -> list[dict]:
-        """u_y on the pulp surface "across" (z = z_c) or "along" (x = x_c) the finger."""
+        """u_y on the pulp surface "across" (z = z_c) or "along" (x = x_c) the finger; with
+        friction, and the friction's columns (`friction_rows`) at the same points."""
         points, sampler = self.across if direction == "across" else self.along
         u = sampler(self.problem.u)
+        friction = None if self.problem.friction is None else self.friction_rows(t, direction)
         if self.comm.rank != 0:
             return []
-        return [{"x_mm": X[0], "z_mm": X[2], "time_s": t, "deflection_mm": ui[1]}
+        rows = [{"x_mm": X[0], "z_mm": X[2], "time_s": t, "deflection_mm": ui[1]}
                 for X, ui in zip(points, u)]
+        return rows if friction is None else [r | f for r, f in zip(rows, friction)]
+
+    @cached_property
+    def _friction(self) -> SurfaceFriction:
+        return SurfaceFriction(self.problem.contact, self.problem.friction)
+
+    def friction_rows(self, t: float, direction: str = "along") -> list[dict]:
+        """With friction (collective; rows on rank 0): the friction's columns
+        (FRICTION_SURFACE_COLUMNS_3D, `SurfaceFriction`) at the surface points "along"
+        (x = x_c) or "across" (z = z_c) the finger."""
+        points = (self.across if direction == "across" else self.along)[0]
+        values = self._friction.at(points, self.reach)
+        if self.comm.rank != 0:
+            return []
+        return [{"x_mm": X[0], "z_mm": X[2], "time_s": t}
+                | dict(zip(FRICTION_SURFACE_COLUMNS_3D, (*row[:5], int(row[5]))))
+                for X, row in zip(points, values)]
 
     def depth_rows(self, t: float) -> list[dict]:
         """Displacement, log strains, SED and pore pressure along each depth curve."""
@@ -360,6 +381,77 @@ class Profiles3D:
             return []
         mid = 0.5 * (self.edges[:-1] + self.edges[1:])
         return [{"z_mm": z, "time_s": t, "force_per_length_N_per_mm": v} for z, v in zip(mid, f)]
+
+
+class SurfaceFriction:
+    """A 3D contact's friction at given points of the surface: the pressure, the tangential
+    traction's x, y and z parts, the stick margin and the contact state (the columns
+    FRICTION_SURFACE_COLUMNS_3D). A point takes the values of the contact facet it lies on
+    or over (within `reach`: `facets_under`), those at the facet's centroid (as the 2D rows
+    are the facets' middles': `Profiles.stick_slip_rows`); a point over none (off the contact
+    surface) has NaN values and the state free (no indenter can touch it there). The values
+    are the last accepted step's (`CoulombFriction.accepted`): measure after `mark_accepted`."""
+
+    def __init__(self, contact, friction):
+        self.comm = contact.u.function_space.mesh.comm
+        traction, margin = friction.accepted  # measured after the step is accepted
+        parts = ufl.as_vector([contact.pressure, *(traction[i] for i in range(3)), margin])
+        self._sampler = contact.surface_sampler(parts, points=np.array([[1.0, 1.0]]) / 3.0)
+        self._corners = facet_corners(contact.u.function_space.mesh, contact._facet_entities)
+
+    def at(self, points: np.ndarray, reach: float) -> np.ndarray | None:
+        """(n, 6) on rank 0 (None elsewhere): the values at the reference `points` (n, 3),
+        the state (`contact_state`) last. Collective."""
+        values = np.asarray(self._sampler()[1]).reshape(-1, 5)
+        which, distance = facets_under(points, self._corners, reach)
+        picked = np.full((len(points), 5), np.nan)
+        picked[which >= 0] = values[which[which >= 0]]
+        gathered = self.comm.gather((distance, picked), root=0)
+        if self.comm.rank != 0:
+            return None
+        d = np.array([g[0] for g in gathered])  # (ranks, points): the nearest rank's facet
+        v = np.array([g[1] for g in gathered])[np.argmin(d, axis=0), np.arange(len(points))]
+        return np.column_stack([v, contact_state(v[:, 0], v[:, 4])])
+
+
+def facet_corners(msh: dmesh.Mesh, entities: np.ndarray) -> np.ndarray:
+    """The reference corners (m, 3, gdim) of the triangles given as (cell, local facet) pairs
+    (m, 2) of a tetrahedral mesh."""
+    tdim = msh.topology.dim
+    msh.topology.create_connectivity(tdim, tdim - 1)
+    c2f = msh.topology.connectivity(tdim, tdim - 1)
+    facets = np.array([c2f.links(c)[f] for c, f in entities], dtype=np.int32)
+    if not len(facets):
+        return np.zeros((0, 3, msh.geometry.dim))
+    nodes = dmesh.entities_to_geometry(msh, tdim - 1, facets)[:, :3]  # the vertices first
+    return msh.geometry.x[nodes][..., :msh.geometry.dim]
+
+
+def facets_under(points: np.ndarray, corners: np.ndarray,
+                 reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """For each point (n, 3): the index of the triangle (of `corners`, (m, 3, 3)) nearest to
+    it, and the distance, where that is at most `reach`; else -1 and inf. The distance is the
+    point's to the nearest point of the triangle, found by clamping the barycentric
+    coordinates of its projection on the triangle's plane (exact inside, and beside an edge;
+    over a corner an upper bound)."""
+    n = len(points)
+    if not len(corners):
+        return np.full(n, -1), np.full(n, np.inf)
+    a, e1, e2 = corners[:, 0], corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
+    d = points[:, None, :] - a[None]  # (n, m, 3)
+    g11, g12, g22 = (e1 * e1).sum(-1), (e1 * e2).sum(-1), (e2 * e2).sum(-1)
+    b1, b2 = np.einsum("nmk,mk->nm", d, e1), np.einsum("nmk,mk->nm", d, e2)
+    det = g11 * g22 - g12**2
+    s = np.clip((g22 * b1 - g12 * b2) / det, 0.0, None)
+    t = np.clip((g11 * b2 - g12 * b1) / det, 0.0, None)
+    over = np.maximum(s + t, 1.0)  # beyond the third edge: back onto it
+    s, t = s / over, t / over
+    gap = d - s[..., None] * e1[None] - t[..., None] * e2[None]
+    distance = np.linalg.norm(gap, axis=-1)
+    which = np.argmin(distance, axis=1)
+    best = distance[np.arange(n), which]
+    far = best > reach
+    return np.where(far, -1, which), np.where(far, np.inf, best)
 
 
 class FieldArrays:

@@ -462,7 +462,7 @@ class FingertipProblem(SteppableState):
             out |= {f"tangential_{axis}{force}": float(f[k]),
                     f"tangential_{axis}displacement_mm": s,
                     f"pressure_tangential_{axis}{force}": float(p[k])}
-        if self.gdim == 3:  # no stick/slip map on a 3D surface: its stick and contact areas
+        if self.gdim == 3:  # the stick and contact areas over the whole surface
             out |= dict(zip(AREA_KEYS, self.friction.areas()))
         return out
 

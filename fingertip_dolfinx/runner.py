@@ -46,10 +46,12 @@ from .outputs import (
     DEPTH_COLUMNS,
     DEPTH_COLUMNS_3D,
     FRICTION_SURFACE_COLUMNS,
+    FRICTION_SURFACE_COLUMNS_3D,
     HISTORY_COLUMNS,
     HISTORY_COLUMNS_3D,
     LINE_FORCE_COLUMNS,
     STICK_SLIP_COLUMNS,
+    STICK_SLIP_COLUMNS_3D,
     SURFACE_COLUMNS,
     SURFACE_COLUMNS_3D,
     Checkpoint,
@@ -314,9 +316,13 @@ class Run:
             return
         self.history = CsvLog(out / "history.csv", HISTORY_COLUMNS_3D + self._friction_columns,
                               comm, after)
-        self.stick_slip = None  # the 3D surfaces carry no friction columns yet
-        self.surfaces = {d: CsvLog(out / f"surface_{d}.csv", SURFACE_COLUMNS_3D, comm, after)
-                         for d in ("across", "along")}
+        friction = p.friction is not None
+        self.surfaces = {d: CsvLog(out / f"surface_{d}.csv", SURFACE_COLUMNS_3D
+                                   + (FRICTION_SURFACE_COLUMNS_3D if friction else ()),
+                                   comm, after) for d in ("across", "along")}
+        # every step, along the finger (the line of surface_along.csv): the stick/slip map
+        self.stick_slip = CsvLog(out / "stick_slip.csv", STICK_SLIP_COLUMNS_3D, comm,
+                                 after) if friction else None
         self.depth = CsvLog(out / "depth_profiles.csv", DEPTH_COLUMNS_3D, comm, after)
         self.line_force = CsvLog(out / "line_force.csv", LINE_FORCE_COLUMNS, comm, after)
         z_c, x_c = profile_position(scene)
@@ -368,7 +374,9 @@ class Run:
     def _friction_columns(self) -> tuple[str, ...]:
         """history.csv's tangential force and displacement, the pressure's share of the
         tangential force (ploughing) and the friction's dissipated energy over the step, with
-        friction only (a frictionless run's file stays as it was)."""
+        friction only (a frictionless run's file stays as it was). 3D: the contact and stick
+        areas, and the pressure's share of the normal force (Coulomb's bound on the friction's
+        share of the tangential force, μ times it, on a curved indenter)."""
         if self.problem.friction is None:
             return ()
         force = self.problem.force_keys[0]
@@ -376,7 +384,7 @@ class Run:
         return (*(column for a in axes for column in (
             f"tangential_{a}{force}", f"tangential_{a}displacement_mm",
             f"pressure_tangential_{a}{force}")), self.problem.dissipated_key,
-            *(AREA_KEYS if self.three_d else ()))
+            *((*AREA_KEYS, f"pressure_normal_{force}") if self.three_d else ()))
 
     def on_step(self, report) -> None:
         """Write what the accepted step produced (its state is the converged one)."""
@@ -403,7 +411,8 @@ class Run:
         if self.receptors is not None:
             self.receptors.write(report.time)
         if self.stick_slip is not None:  # every step: the stick/slip map's time axis
-            self.stick_slip.write(self.profiles.stick_slip_rows(report.time))
+            self.stick_slip.write(self.profiles.friction_rows(report.time) if self.three_d
+                                  else self.profiles.stick_slip_rows(report.time))
         self._save_checkpoint(report)
         self.time = report.time
         self._show(report)
@@ -483,7 +492,7 @@ class Run:
         if self.scene.outputs.pictures:
             with whole_files(self.out, "figures", MPI.COMM_SELF) as folder:
                 _figures(self.out, self.scene.title, folder)
-                if self.stick_slip is not None:
+                if self.stick_slip is not None and not self.three_d:
                     _friction_figure(self.out, self.scene.title, folder,
                                      max(self.problem.friction_coefficients))
                 if afferents is not None:
@@ -493,9 +502,10 @@ class Run:
                     _figures_3d(self.out, self.scene.title, folder)
                     if self.problem.friction is not None:
                         h = read_csv(self.out / "history.csv")
+                        s = read_csv(self.out / "stick_slip.csv")
                         plot_friction_3d(h, folder / "friction.png",
                                          max(self.problem.friction_coefficients),
-                                         title=self.scene.title)
+                                         title=self.scene.title, stick_slip=s or None)
         return summary
 
 

@@ -207,7 +207,7 @@ def test_a_run_without_pictures_writes_the_numbers_only(tmp_path, monkeypatch):
 
 
 @pytest.mark.parametrize("name", ["line-load-3d", "2pt-3d", "probe-3d", "vibrotactile-3d",
-                                  "grating-3d", "shear-3d"])
+                                  "grating-3d", "shear-3d", "slide-3d"])
 def test_the_3d_scenes_load_with_a_3d_fingertip(name):
     from fingertip_dolfinx.geometry.fingertip3d import Fingertip3D
 

@@ -296,11 +296,12 @@ class NitscheContact:
         return fem.compute_integration_domains(
             fem.IntegralType.exterior_facet, domain.topology, self.facets).reshape(-1, 2)
 
-    def surface_sampler(self, expr, points_per_facet: int = 5):
+    def surface_sampler(self, expr, points_per_facet: int = 5, points=None):
         """A function returning (X, values) of the vector or scalar UFL `expr` at points on
         this rank's owned surface facets: X (m, gdim) reference coordinates, values (m, ...).
         The points are those of a P(points_per_facet − 1) lattice on each facet (its ends in
-        2D; in 3D the lattice of the triangle). The expression is compiled once, here."""
+        2D; in 3D the lattice of the triangle), or the facet's reference `points` if given.
+        The expression is compiled once, here."""
         domain = self.u.function_space.mesh
         tdim = domain.topology.dim
         entities = self._facet_entities
@@ -309,7 +310,9 @@ class NitscheContact:
         shape = expr.ufl_shape
         parts = [*(X[i] for i in range(gdim)),
                  *([expr[i] for i in range(shape[0])] if shape else [expr])]
-        compiled = fem.Expression(ufl.as_vector(parts), _facet_points(tdim, points_per_facet))
+        if points is None:
+            points = _facet_points(tdim, points_per_facet)
+        compiled = fem.Expression(ufl.as_vector(parts), np.asarray(points, dtype=float))
 
         def evaluate() -> tuple[np.ndarray, np.ndarray]:
             values = compiled.eval(domain, entities).reshape(-1, len(parts))

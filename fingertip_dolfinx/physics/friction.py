@@ -123,9 +123,17 @@ class CoulombFriction:
                              if contact.method == "penalty" else None)
         #: Each indenter's (x, y) (3D: (x, y, z)) at the last accepted step.
         self._previous = [fem.Constant(domain, np.zeros(gdim)) for _ in contact.obstacles]
+        #: Where the last accepted step started (its u_prev and the indenters' positions):
+        #: its slip, for `accepted`, the state measured after `mark_accepted`.
+        self.u_step = fem.Function(u.function_space, name="u_step")
+        self._elastic_slip_step = (fem.Function(u.function_space, name="elastic_slip_step")
+                                   if self.elastic_slip is not None else None)
+        self._step_start = [fem.Constant(domain, np.zeros(gdim)) for _ in contact.obstacles]
         self._forces, self.trial, self._slips = [], [], []
         for i in range(len(contact.obstacles)):
-            q, radius = self._trial(i, gdim)
+            q, radius, slip = self._trial(i, gdim, self.u_prev, self._previous,
+                                          self.elastic_slip)
+            self._slips.append(slip)
             self._forces.append(project_on_ball(q, radius))
             self.trial.append(radius - ufl.sqrt(ufl.dot(q, q)))
         nearest = contact._nearest
@@ -149,20 +157,35 @@ class CoulombFriction:
         return sum(c * (f[0] * n[1] - f[1] * n[0])
                    for c, f, n in zip(nearest, self._forces, normals))
 
-    def _trial(self, i: int, gdim: int) -> tuple:
-        """Indenter i's q = t_t − γ Δs_t (UFL vector) and the ball's radius μ p."""
+    def _trial(self, i: int, gdim: int, u_prev, previous, elastic_slip) -> tuple:
+        """Indenter i's q = t_t − γ Δs_t (UFL vector), the ball's radius μ p and the slip
+        Δs_t since the state `u_prev` with the indenters at `previous` (penalty: its elastic
+        slip `elastic_slip`; None for Nitsche's law)."""
         contact, obstacle = self.contact, self.contact.obstacles[i]
         n = contact._normals[i]
-        moved = ufl.as_vector([_coordinate(obstacle, k) - self._previous[i][k]
+        moved = ufl.as_vector([_coordinate(obstacle, k) - previous[i][k]
                                for k in range(gdim)])
         tangential = ufl.Identity(gdim) - ufl.outer(n, n)
-        slip = tangential * (contact.u - self.u_prev - moved)
-        self._slips.append(slip)
-        # the penalty law has no traction estimate (t_n = 0 in the contact): the last accepted
-        # traction γ w_n in its place
-        t_t = (tangential * contact.traction if self.elastic_slip is None
-               else self.gamma * (tangential * self.elastic_slip))
-        return t_t - self.gamma * slip, self.mu[i] * contact._pressures[i]
+        slip = tangential * (contact.u - u_prev - moved)
+        # the penalty law has no traction estimate (t_n = 0 in the contact): the traction
+        # γ w of the state the step starts from in its place
+        t_t = (tangential * contact.traction if elastic_slip is None
+               else self.gamma * (tangential * elastic_slip))
+        return t_t - self.gamma * slip, self.mu[i] * contact._pressures[i], slip
+
+    @cached_property
+    def accepted(self) -> tuple:
+        """(f, the stick margin) of the last accepted step, as UFL, for measuring after
+        `mark_accepted` (a run writes its outputs then): `traction` and `stick_margin` with
+        the slip over that step, from where it started (`u_step`, the indenters there and,
+        penalty, the elastic slip then). After `mark_accepted` the live `stick_margin` has
+        no slip left: it is μp − |f| (penalty), 0 wherever the step slipped."""
+        gdim = self.contact.u.function_space.mesh.geometry.dim
+        nearest = self.contact._nearest
+        trials = [self._trial(i, gdim, self.u_step, self._step_start, self._elastic_slip_step)
+                  for i in range(len(self.contact.obstacles))]
+        return (sum(c * project_on_ball(q, r) for c, (q, r, _) in zip(nearest, trials)),
+                sum(c * (r - ufl.sqrt(ufl.dot(q, q))) for c, (q, r, _) in zip(nearest, trials)))
 
     def _term(self, i: int, v) -> ufl.Form:
         return -self.contact._nearest[i] * ufl.dot(self._forces[i], v) * self.contact.ds
@@ -172,9 +195,14 @@ class CoulombFriction:
         return sum(self._term(i, v) for i, mu in enumerate(self.mu) if mu > 0)
 
     def mark_accepted(self) -> None:
-        """The current state becomes the start of the next slip increment (penalty: its
-        traction, the elastic slip f/γ, first: f depends on the step's slip)."""
+        """The current state becomes the start of the next slip increment (the last one's
+        start is kept for `accepted`; penalty: the traction, the elastic slip f/γ, is taken
+        before u_prev moves, since f depends on the step's slip)."""
+        self.u_step.x.array[:] = self.u_prev.x.array
+        for start, previous in zip(self._step_start, self._previous):
+            start.value[:] = previous.value
         if self.elastic_slip is not None:
+            self._elastic_slip_step.x.array[:] = self.elastic_slip.x.array
             self._slip_now.interpolate(self._slip_expression)
             self.elastic_slip.x.array[:] = self._slip_now.x.array
             self.elastic_slip.x.scatter_forward()

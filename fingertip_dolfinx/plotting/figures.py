@@ -195,18 +195,7 @@ def plot_friction(stick_slip: dict, history: dict, path: Path, mu: float,
     force, the tangential force and Coulomb's bound μ times the normal force, against time."""
     fig = Figure(figsize=(6.4, 6.4))
     ax_m, ax_f = fig.subplots(2, 1, sharex=True, height_ratios=(3, 2))
-    times, x = np.unique(stick_slip["time_s"]), np.unique(stick_slip["x_mm"])
-    state = np.full((len(x), len(times)), np.nan)
-    state[np.searchsorted(x, stick_slip["x_mm"]),
-          np.searchsorted(times, stick_slip["time_s"])] = stick_slip["contact_state"]
-    t_edges = np.concatenate([[0.0], times])
-    x_edges = np.concatenate([[x[0]], 0.5 * (x[1:] + x[:-1]), [x[-1]]])
-    colours = matplotlib.colors.ListedColormap(STATE_COLOURS)
-    ax_m.pcolormesh(t_edges, x_edges, state, cmap=colours, vmin=-0.5, vmax=2.5)
-    ax_m.legend(handles=[Patch(color=c, label=n) for c, n in
-                         zip(STATE_COLOURS, ("free", "slip", "stick"))],
-                loc="upper left", fontsize=8)
-    ax_m.set_ylabel("surface point x (mm, reference)")
+    _state_map(ax_m, stick_slip, "x_mm", "surface point x (mm, reference)")
     ax_m.set_title(title)
     t = np.concatenate([[0.0], history["time_s"]])
     column, unit = force_column(history)
@@ -217,24 +206,57 @@ def plot_friction(stick_slip: dict, history: dict, path: Path, mu: float,
     fig.savefig(path, dpi=150)
 
 
-def _coulomb_panel(ax, t, normal, tangential, mu: float, quantity: str, name: str) -> None:
+def _state_map(ax, stick_slip: dict, key: str, label: str) -> None:
+    """Each surface point's state (free, slip, stick) at each step: its reference coordinate
+    `key` against time (a step's state fills the interval that ends at it)."""
+    times, x = np.unique(stick_slip["time_s"]), np.unique(stick_slip[key])
+    state = np.full((len(x), len(times)), np.nan)
+    state[np.searchsorted(x, stick_slip[key]),
+          np.searchsorted(times, stick_slip["time_s"])] = stick_slip["contact_state"]
+    t_edges = np.concatenate([[0.0], times])
+    x_edges = np.concatenate([[x[0]], 0.5 * (x[1:] + x[:-1]), [x[-1]]])
+    colours = matplotlib.colors.ListedColormap(STATE_COLOURS)
+    ax.pcolormesh(t_edges, x_edges, state, cmap=colours, vmin=-0.5, vmax=2.5)
+    ax.legend(handles=[Patch(color=c, label=n) for c, n in
+                       zip(STATE_COLOURS, ("free", "slip", "stick"))],
+              loc="upper left", fontsize=8)
+    ax.set_ylabel(label)
+
+
+def _coulomb_panel(ax, t, normal, tangential, mu: float, quantity: str, name: str,
+                   normal_name: str = "normal force") -> None:
     """The normal and tangential forces against time with Coulomb's bound μ × normal."""
     factor, label = display_unit(quantity, float(np.max(normal)))
-    ax.plot(t, factor * normal, "k-", label="normal force")
+    ax.plot(t, factor * normal, "k-", label=normal_name)
     ax.plot(t, factor * tangential, "o-", ms=3, color=STATE_COLOURS[1], label=name)
-    ax.plot(t, factor * mu * normal, "--", color="0.4", label=f"μ × normal force (μ = {mu:g})")
+    ax.plot(t, factor * mu * normal, "--", color="0.4", label=f"μ × {normal_name} (μ = {mu:g})")
     ax.set_ylabel(label)
     ax.set_xlabel("time (s)")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
 
 
-def plot_friction_3d(history: dict, path: Path, mu: float, title: str = "") -> None:
-    """A 3D run with friction, from history.csv. Above: the contact area and its sticking part
-    against time (a 3D surface has no stick/slip map). Below: the normal force, the tangential
-    force's size |(F_x, F_z)| and Coulomb's bound μ times the normal force."""
-    fig = Figure(figsize=(6.4, 6.4))
-    ax_a, ax_f = fig.subplots(2, 1, sharex=True, height_ratios=(1, 1))
+def plot_friction_3d(history: dict, path: Path, mu: float, title: str = "",
+                     stick_slip: dict | None = None) -> None:
+    """A 3D run with friction, from history.csv (and stick_slip.csv). At the top, given
+    `stick_slip`: the stick/slip map along the finger (z against time, on the line of
+    surface_along.csv). Then the contact area and its sticking part against time; below, the
+    pressure's normal force, the friction's tangential share and Coulomb's bound μ times the
+    former (`_coulomb_forces_3d`)."""
+    if stick_slip is None:
+        fig = Figure(figsize=(6.4, 6.4))
+        ax_a, ax_f = fig.subplots(2, 1, sharex=True, height_ratios=(1, 1))
+    else:
+        fig = Figure(figsize=(6.4, 8.8))
+        ax_m, ax_a, ax_f = fig.subplots(3, 1, sharex=True, height_ratios=(3, 2, 2))
+        x = np.unique(stick_slip["x_mm"])
+        _state_map(ax_m, stick_slip, "z_mm", f"surface point z (mm, reference; x = {x[0]:g})")
+        touched = stick_slip["z_mm"][stick_slip["contact_state"] > 0]
+        if len(touched):  # the contact's strip and 2 mm either side, not the whole finger
+            ax_m.set_ylim(max(touched.min() - 2.0, 0.0),
+                          min(touched.max() + 2.0, stick_slip["z_mm"].max()))
+        ax_m.set_title(title)
+        title = ""
     t = np.concatenate([[0.0], history["time_s"]])
     for key, colour, label in (("contact_area_mm2", "0.3", "in contact"),
                                ("stick_area_mm2", STATE_COLOURS[2], "sticking")):
@@ -244,13 +266,29 @@ def plot_friction_3d(history: dict, path: Path, mu: float, title: str = "") -> N
     ax_a.legend(fontsize=8)
     ax_a.grid(alpha=0.3)
     ax_a.set_title(title)
-    normal = np.abs(np.concatenate([[0.0], history["force_N"]]))
-    tangential = np.concatenate([[0.0], np.hypot(history["tangential_x_force_N"],
-                                                 history["tangential_z_force_N"])])
-    _coulomb_panel(ax_f, t, normal, tangential, mu, "force (N)",
-                   "tangential force |(F_x, F_z)|")
+    _coulomb_panel(ax_f, t, *_coulomb_forces_3d(history), mu, "force (N)",
+                   "friction's tangential share |(F_x − F_p,x, F_z − F_p,z)|"
+                   if "pressure_normal_force_N" in history else "tangential force |(F_x, F_z)|",
+                   "pressure's normal force F_p,y" if "pressure_normal_force_N" in history
+                   else "normal force")
     fig.tight_layout()
     fig.savefig(path, dpi=150)
+
+
+def _coulomb_forces_3d(history: dict) -> tuple[np.ndarray, np.ndarray]:
+    """(normal, tangential) from a 3D history, from t = 0: with the pressure's shares
+    (`pressure_normal_force_N`), the pressure's normal force and the friction traction's
+    tangential share, whose bound μ F_p,y holds on a curved indenter too (to the contact's
+    tilt; a half model's pressure has an x-share, the mirror's); else the total forces."""
+    if "pressure_normal_force_N" not in history:  # a run before that column
+        normal, tangential = history["force_N"], np.hypot(history["tangential_x_force_N"],
+                                                          history["tangential_z_force_N"])
+    else:
+        normal = history["pressure_normal_force_N"]
+        tangential = np.hypot(
+            history["tangential_x_force_N"] - history["pressure_tangential_x_force_N"],
+            history["tangential_z_force_N"] - history["pressure_tangential_z_force_N"])
+    return (np.abs(np.concatenate([[0.0], normal])), np.concatenate([[0.0], tangential]))
 
 
 def plot_surface_profiles(profile: dict, path: Path, title: str = "", along: str = "x") -> None:
