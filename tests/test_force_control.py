@@ -123,7 +123,8 @@ def test_force_control_needs_a_tangential_path_a_2d_section_and_step_control_by_
         load_scene("slide-force", ["steps.control=error"])
 
 
-def test_the_slide_force_scene_records_its_target_and_other_scenes_their_old_record():
+def test_the_slide_force_scene_records_its_target_and_other_scenes_their_old_record(tmp_path):
+    from fingertip_dolfinx.outputs import check_resume
     from fingertip_dolfinx.scene import load_scene, scene_record
 
     scene = load_scene("slide-force")
@@ -134,6 +135,14 @@ def test_the_slide_force_scene_records_its_target_and_other_scenes_their_old_rec
     # the force path's times are steps' landing points; a path without it is as it was
     assert 0.1 in scene.history.breakpoints
     assert "normal_force" not in scene_record(load_scene("slide"))["protocol"]
+    # a resume with another target is another experiment
+    other = scene_record(load_scene("slide-force", ["protocol.normal_force.rtol=1e-4"]))
+    with pytest.raises(InputError, match="normal_force"):
+        check_resume(scene_record(scene), other, 0.05, tmp_path)
+    harder = scene_record(load_scene("slide-force", ["protocol.normal_force.values=[0.0, 7e-4]"]))
+    with pytest.raises(InputError, match="normal_force"):
+        check_resume(scene_record(scene), harder, 0.05, tmp_path)
+    check_resume(scene_record(scene), scene_record(scene), 0.05, tmp_path)  # the same: allowed
 
 
 #: The coarse shear scene pressed 0.5 mm in two steps, then dragged 0.2 mm in two with its
