@@ -10,7 +10,10 @@ The indenters' depth is then an unknown of each step (`DepthControl`), its value
 history.csv's `indenter_displacement_mm` reports.
 
 The method: an outer iteration on the depth, each evaluation a full Newton solve of the step
-at that depth (the stepper's own, unchanged), started from the last solve's state.
+at that depth (the stepper's own, unchanged), started from the last solve's state moved to
+the new depth along its tangent (`stepping.stepper.TangentPredictor.predict_along`: from the
+state itself, with the indenter moved by more than the contact's penetration, Newton started
+with the contact lost and failed).
 
 - Why not a global unknown: the constraint Fn(u, d) = F* as an extra scalar unknown with d
   needs a one-dof ("real") space in the Newton system. DOLFINx 0.11 has none (scifem adds
