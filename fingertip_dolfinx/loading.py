@@ -17,6 +17,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from .errors import InputError
+from .force_control import NormalForce, normal_force_from_dict
 from .validation import check_keys
 
 
@@ -317,12 +318,15 @@ class TangentialPath:
     `normal` a ramp-hold, `tangential` 0 until the ramp's end, then a ramp. It meets
     `LoadHistory` (d(t), the end and depth of `normal`, the breakpoints of both), so every
     existing protocol and its use stay as they are; `tangential_at(t)` is s(t),
-    `displacement_at(t)` its (x, z) components.
+    `displacement_at(t)` its (x, z) components. With `normal_force` (force_control.py) the
+    indenters' normal force follows that target from its first time on, their depth found
+    per step; `normal` presses before it and gives the first guess of the depth after it.
     """
 
     normal: LoadHistory
     tangential: PiecewiseLinear
     direction: tuple[float, float] = (1.0, 0.0)  # (x, z), made a unit vector
+    normal_force: NormalForce | None = None  # the target normal force (N/mm), or None
 
     def __post_init__(self):
         if not isinstance(self.tangential, PiecewiseLinear):
@@ -334,6 +338,11 @@ class TangentialPath:
                 f"{self.tangential.times[-1]:g} s, after the protocol's end "
                 f"({self.normal.end_time:g} s).", "end it by the protocol's end_time.")
         object.__setattr__(self, "direction", unit_direction(self.direction))
+        force = self.normal_force
+        if force is not None and not force.start < self.normal.end_time:
+            raise InputError("protocol.normal_force.times", f"force control would start at "
+                             f"{force.start:g} s, not before the protocol's end "
+                             f"({self.normal.end_time:g} s).", "start it earlier.")
 
     @property
     def end_time(self) -> float:
@@ -353,7 +362,10 @@ class TangentialPath:
 
     @property
     def breakpoints(self) -> tuple[float, ...]:
-        return tuple(sorted(set(self.normal.breakpoints) | set(self.tangential.breakpoints)))
+        force = () if self.normal_force is None else (
+            t for t in self.normal_force.times if t <= self.end_time)
+        return tuple(sorted(set(self.normal.breakpoints) | set(self.tangential.breakpoints)
+                            | set(force)))
 
     @property
     def deepest(self) -> float:
@@ -381,6 +393,10 @@ def check_tangential_path(history, gdim: int, half: bool) -> None:
     is exact for it (with its indenters on the plane x = 0, as a half model needs anyway)."""
     if not hasattr(history, "tangential_at"):
         return
+    if getattr(history, "normal_force", None) is not None and gdim == 3:
+        raise InputError("protocol.normal_force", "force control is 2D only (a 3D run's forces "
+                         "are the half model's, and it was not tried in 3D).",
+                         "prescribe the depth in 3D (drop normal_force), or use a 2D section.")
     d_x, d_z = getattr(history, "direction", (1.0, 0.0))
     if d_z != 0 and gdim == 2:
         raise InputError("protocol.tangential.direction", f"{list(history.direction)} has a "
@@ -402,9 +418,16 @@ def history_from_dict(data: dict, where: str = "protocol") -> LoadHistory:
     """Build a protocol from a scene file's `[protocol]` table (`kind` picks the class)."""
     data = dict(data)
     tangential = data.pop("tangential", None)
+    force = data.pop("normal_force", None)
+    if force is not None and tangential is None:
+        raise InputError(f"{where}.normal_force", "force control comes with a tangential path "
+                         "(the normal force held while the indenters move).",
+                         "add tangential = {times = [0.0, T], values = [0.0, 0.0]} to hold "
+                         "the force without moving along the surface.")
     if tangential is not None:  # the normal protocol, and the indenters' tangential path
+        force = None if force is None else normal_force_from_dict(force, f"{where}.normal_force")
         return TangentialPath(history_from_dict(data, where),
-                              *_tangential(tangential, f"{where}.tangential"))
+                              *_tangential(tangential, f"{where}.tangential"), force)
     kind = data.pop("kind", "ramp-hold")
     if kind not in KINDS:
         raise InputError(f"{where}.kind", f"unknown protocol {kind!r}.",

@@ -355,18 +355,34 @@ def _leaves(node, prefix: str = "") -> dict:
 
 def _same_load(old: dict, new: dict, t: float) -> bool:
     """Do two protocols (records) prescribe the same d(s) for s <= t, with the same kinks
-    before t (where the steps landed)? Then what was computed up to t is what the new one
-    would compute."""
+    before t (where the steps landed), and the same force control (its start and tolerance,
+    and its target for s <= t)? Then what was computed up to t is what the new one would
+    compute."""
     a, b = (history_from_dict(dict(p)) for p in (old, new))
     kinks = [[m for m in h.breakpoints if m < t - 1e-12] for h in (a, b)]
     if len(kinks[0]) != len(kinks[1]) or not np.allclose(*kinks, rtol=0, atol=1e-12):
         return False
+    if _force_control(a) != _force_control(b):
+        return False
     s = np.union1d(np.linspace(0.0, t, 1001), [*kinks[0], t])
     same = True
-    for path in (lambda h, x: h(x), _tangential_at):  # the indentation, and the path along x, z
+    # the indentation, the path along x and z, and the target force (0 without one)
+    for path in (lambda h, x: h(x), _tangential_at, _force_at):
         da, db = (np.array([path(h, x) for x in s]) for h in (a, b))
         same = same and bool(np.allclose(da, db, rtol=1e-12, atol=1e-15))
     return same
+
+
+def _force_control(history) -> tuple[float, float] | None:
+    """A force-controlled protocol's (start, rtol); None without force control."""
+    force = getattr(history, "normal_force", None)
+    return None if force is None else (force.start, force.rtol)
+
+
+def _force_at(history, t: float) -> float:
+    """The target normal force at t (N/mm; 0 without force control)."""
+    force = getattr(history, "normal_force", None)
+    return 0.0 if force is None else force(t)
 
 
 def _tangential_at(history, t: float) -> tuple[float, float]:

@@ -48,6 +48,7 @@ admissibility.py.
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections.abc import Sequence
 from functools import cached_property
@@ -59,6 +60,7 @@ from dolfinx import mesh as dmesh
 from mpi4py import MPI
 
 from .errors import InputError
+from .force_control import DepthControl
 from .geometry.indenters import Indenter
 from .geometry.mesh import FingertipMesh
 from .loading import History, check_tangential_path
@@ -100,6 +102,8 @@ def wait_for_compiles_elsewhere(seconds: float = JIT_WAIT) -> None:
     jit.DOLFINX_DEFAULT_JIT_OPTIONS["timeout"] = (max(value, seconds), doc)
 
 
+#: Under force control: the diagnostics' (and history.csv's) name of the target normal force.
+TARGET_KEY = "normal_force_target_N_per_mm"
 #: With friction, 3D: the diagnostics' names of the contact area (p > 0) and the stick area.
 AREA_KEYS = ("contact_area_mm2", "stick_area_mm2")
 
@@ -177,8 +181,12 @@ class FingertipProblem(SteppableState):
             self.u, self.F, self.dt, options.quadrature_degree, cells))
         self._residual(cells["subcutaneous"])
         self.admissibility = self._admissibility(cells["subcutaneous"])
-        self.mark_accepted()
         self.time = 0.0
+        #: Force control (force_control.py): the depth found per step, or None.
+        target = getattr(history, "normal_force", None)
+        self.force_control = None if target is None else DepthControl(
+            target, history, self.normal_force, lambda: self.time)
+        self.mark_accepted()
 
     def _unknowns_u(self) -> None:
         """The displacement, its two earlier accepted values and F."""
@@ -354,7 +362,10 @@ class FingertipProblem(SteppableState):
         """The QLV histories of the regions' laws (a law shared by regions counts once), and
         the friction's last accepted state (its slip increments start there)."""
         laws = [law.history for law in self.laws.with_history()]
-        return laws + ([] if self.friction is None else [self.friction])
+        # force control first: it measures the accepted step's force, which the friction's
+        # advance (its slip since the last accepted state) would change
+        force = [] if self.force_control is None else [self.force_control]
+        return force + laws + ([] if self.friction is None else [self.friction])
 
     def history_arrays(self) -> dict[str, np.ndarray]:
         """qlv_h{i}, qlv_S_e_n if the skin is viscoelastic, qlv_subcutaneous_h{i},
@@ -362,6 +373,8 @@ class FingertipProblem(SteppableState):
         with friction, its friction_u_prev and friction_previous_{i} (and with the penalty
         contact its friction_elastic_slip)."""
         arrays = self.laws.history_arrays()
+        if self.force_control is not None:  # the accepted depths: a resume predicts from them
+            arrays |= self.force_control.arrays()
         return arrays if self.friction is None else arrays | self.friction.arrays()
 
     def region_energies(self) -> dict[int, ufl.core.expr.Expr]:
@@ -381,7 +394,18 @@ class FingertipProblem(SteppableState):
 
     # --- the Steppable protocol ---------------------------------------------------------------
     def indentation(self, t: float) -> float:
+        """The depth (mm after first touch) at t: the protocol's, or under force control the
+        depth found for the step."""
+        if self.force_control is not None:
+            return self.force_control.depth_at(t)
         return float(self.history(t))
+
+    def normal_force(self) -> float:
+        """The indenters' y-force on the body (N/mm; history.csv's force column): the
+        contact's, with friction the friction's y-share too (what the holder feels)."""
+        if self.friction is None:
+            return float(np.sum(self.contact.forces()))
+        return float(self.friction.forces().sum(axis=0)[1])
 
     def set_time(self, t: float) -> None:
         for obstacle in self.obstacles:
@@ -441,6 +465,11 @@ class FingertipProblem(SteppableState):
             "max_penetration_mm": self.max_penetration(),
             "min_J": J_min,
         }
+        control = self.force_control
+        if control is not None:  # the target and the solves the step's depth took
+            active = control.active(self.time)
+            out |= {TARGET_KEY: control.target(self.time) if active else math.nan,
+                    "force_solves": len(control.samples) if active else 1}
         return out if self.friction is None else out | self._friction_diagnostics()
 
     def _friction_diagnostics(self) -> dict[str, float]:

@@ -77,7 +77,7 @@ from .plotting.figures import (
 )
 from .plotting.pictures import field_pictures
 from .post import DerivedFields, FieldArrays, Profiles, Profiles3D
-from .problem import AREA_KEYS, FingertipProblem
+from .problem import AREA_KEYS, TARGET_KEY, FingertipProblem
 from .result import Result
 from .scene import Scene, scene_record
 from .stepping.stepper import TimeStepper
@@ -302,8 +302,8 @@ class Run:
         scene, out, comm, p = self.scene, self.out, self.comm, self.problem
         self.arrays = FieldArrays(p, self.derived)  # fields_t<t>s.npz, for Result.to_pyvista
         if not self.three_d:
-            self.history = CsvLog(out / "history.csv", HISTORY_COLUMNS + self._friction_columns,
-                                  comm, after)
+            self.history = CsvLog(out / "history.csv", HISTORY_COLUMNS + self._friction_columns
+                                  + self._force_columns, comm, after)
             friction = p.friction is not None
             self.surfaces = {"": CsvLog(out / "surface_profile.csv", SURFACE_COLUMNS
                                         + (FRICTION_SURFACE_COLUMNS if friction else ()),
@@ -386,6 +386,12 @@ class Run:
             f"pressure_tangential_{a}{force}")), self.problem.dissipated_key,
             *((*AREA_KEYS, f"pressure_normal_{force}") if self.three_d else ()))
 
+    @property
+    def _force_columns(self) -> tuple[str, ...]:
+        """Under force control (2D): the target normal force and the Newton solves the step's
+        depth took (history.csv's depth is then the one found)."""
+        return () if self.problem.force_control is None else (TARGET_KEY, "force_solves")
+
     def on_step(self, report) -> None:
         """Write what the accepted step produced (its state is the converged one)."""
         self.step_count += 1
@@ -393,13 +399,13 @@ class Run:
         force, reaction = self.problem.force_keys
         column_force, column_reaction = self.history.columns[2], self.history.columns[5]
         self.history.write([{
-            "time_s": report.time, "indenter_displacement_mm": report.load,
+            "time_s": report.time, "indenter_displacement_mm": d["indentation_mm"],
             column_force: d[force], "newton_iterations": report.newton_iterations,
             "dt_s": report.dt, column_reaction: d[reaction],
             "max_penetration_mm": d["max_penetration_mm"], "min_J": d["min_J"],
             "cuts": report.cuts, "wall_time_s": report.wall_time_s,
             "krylov_iterations": report.linear_iterations}
-            | {k: d[k] for k in self._friction_columns}])
+            | {k: d[k] for k in self._friction_columns + self._force_columns}])
         at_output = any(abs(report.time - t) < 1e-9 for t in self.scene.output_times)
         outputs = self.scene.outputs
         if at_output or (outputs.fields == "every-step"

@@ -232,6 +232,11 @@ class Scene:
                              "give a positive depth (mm after first touch).")
         three_d = isinstance(self.section, Fingertip3D)
         check_tangential_path(self.history, 3 if three_d else 2, three_d and self.section.half)
+        if getattr(self.history, "normal_force", None) is not None and \
+                self.steps.control == "error":
+            raise InputError(f"{self.name}: steps.control", "error control redoes steps as "
+                             "two halves at the protocol's depth, which force control finds "
+                             "per step instead.", 'use control = "iterations" (the default).')
         if self.model.inertia and self.steps.scheme != "generalized-alpha":
             raise InputError(f"{self.name}: steps.scheme", f"{self.steps.scheme!r} integrates "
                              "no acceleration, but model.inertia is on.",
@@ -774,7 +779,9 @@ def _protocol_record(history) -> dict:
         table = {"times": path.times, "values": path.values}
         if history.direction != (1.0, 0.0):
             table["direction"] = history.direction
-        return _protocol_record(history.normal) | {"tangential": table}
+        force = history.normal_force  # force control: its target (no key without it)
+        held = {} if force is None else {"normal_force": dataclasses.asdict(force)}
+        return _protocol_record(history.normal) | {"tangential": table} | held
     kind = next((k for k, cls in KINDS.items() if isinstance(history, cls)), type(history).__name__)
     return {"kind": kind, **{f.name: getattr(history, f.name)
                              for f in dataclasses.fields(history) if f.init}}

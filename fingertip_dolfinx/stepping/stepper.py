@@ -184,6 +184,14 @@ class TimeStepper:
         #: The predictor where no extrapolation starts a step (StepOptions.tangent_start).
         self.tangent = TangentPredictor(self.snes, self.nonlinear) \
             if self.options.tangent_start else None
+        #: Force control's predictor between the solves of a step (`_solve_to_force`).
+        self.depth_tangent = None if getattr(problem, "force_control", None) is None else \
+            self.tangent or TangentPredictor(self.snes, self.nonlinear)
+        if getattr(problem, "force_control", None) is not None and \
+                self.options.control == "error":
+            raise FingertipError("force control finds the depth per step, which error "
+                                 "control's doubled steps would not. Fix: steps.control = "
+                                 "\"iterations\" (the default).")
 
     def _set_dynamics(self) -> None:
         """Give a problem with inertia the scheme's ρ∞; refuse a quasi-static scheme for it."""
@@ -318,6 +326,9 @@ class TimeStepper:
         step.t_new = line.lands(step.t, step.dt)
         step.t_first = step.t_new if step.t_first is None else step.t_first
         problem.dt.value = step.t_new - step.t
+        control = _force_control(problem, step.t_new)
+        if control is not None:
+            control.begin(step.t_new)  # the predicted depth, before the loads move there
         problem.set_time(step.t_new)
         step.plan = self._prepare(line.since, line.own, step.t_new)
         if self._control.estimates_error:
@@ -331,9 +342,40 @@ class TimeStepper:
                 self.reuse.start()  # a fresh Jacobian: the accepted state's, not a kept one
             self.tangent.predict(problem, step.t, step.t_new)
             predicted = 1
-        step.reason, step.iterations = self.solve_once()
+        step.reason, step.iterations = self.solve_once() if control is None else \
+            self._solve_to_force(control, step.t_new)
         step.iterations += predicted
         step.why = (problem.inadmissible() or "").rstrip(".") if step.reason > 0 else ""
+        if control is not None and step.reason > 0 and not step.why and not control.reached:
+            step.why = control.shortfall()  # a force off its tolerance: the step is cut
+
+    def _solve_to_force(self, control, t_new: float) -> tuple[int, int]:
+        """Under force control (force_control.py): solve the step at the trial depth, each
+        solve from the last one's state, until the indenters' normal force is within its
+        tolerance, a solve fails, its state is inadmissible, or `control.max_solves` solves are
+        spent (`control.reached` says which). Returns the last SNES reason and the Newton
+        iterations of all the solves."""
+        problem, iterations = self.problem, 0
+        for _ in range(control.max_solves):
+            reason, its = self.solve_once()
+            iterations += its
+            if reason <= 0 or problem.inadmissible():
+                break
+            d = control.d_trial
+            if control.record(problem.normal_force()):
+                break
+            # to the next trial depth along the tangent (an iteration's cost: counted as one)
+            d_next = control.d_trial
+
+            def move(s, d=d, d_next=d_next):
+                control.d_trial = d + s * (d_next - d)
+                problem.set_time(t_new)
+
+            if self.reuse is not None:
+                self.reuse.start()  # the Jacobian of the solved state, not a kept one
+            self.depth_tangent.predict_along(problem, move)
+            iterations += 1
+        return reason, iterations
 
     def _estimate(self, line: _Timeline, step: _Step) -> float:
         """The converged attempt's error over the tolerance: by step doubling after a kink (the
@@ -574,16 +616,25 @@ class TangentPredictor:
     def predict(self, problem, t: float, t_new: float) -> None:
         """Set the unknowns to the tangent predictor of the step t → t_new (the loads end at
         t_new, the problem's dt is the step's)."""
+        self.predict_along(problem, lambda s: problem.set_time(
+            t_new if s == 1.0 else t + s * (t_new - t)))  # t_new itself, to the last digit
+
+    def predict_along(self, problem, move: Callable[[float], None]) -> None:
+        """The same for any change of the loads: `move(s)` sets them a fraction s of the way
+        (0 where the unknowns are, 1 where they go; they end at 1). Force control moves the
+        depth so between two solves of a step: from the last solve's state with the
+        indenters moved by more than its penetration (~0.2 µm on the coarse shear scene),
+        Newton starts with the contact lost or overlapping, and was measured to fail (15
+        iterations for a move of 0.15 µm)."""
         snes, x = self.snes, self.x
         dolfinx.fem.petsc.assign(problem.unknowns, x)
-        sliver = self.EPS * (t_new - t)
         J, P, _ = snes.getJacobian()
-        problem.set_time(t)
+        move(0.0)
         snes.computeFunction(x, self.r0)
         snes.computeJacobian(x, J, P)
-        problem.set_time(t + sliver)
+        move(self.EPS)
         snes.computeFunction(x, self.r1)
-        problem.set_time(t_new)
+        move(1.0)
         self.r1.axpby(1.0 - 1.0 / self.EPS, 1.0 / self.EPS, self.r0)  # r0 + (r1 − r0)/EPS
         ksp = snes.getKSP()
         ksp.setOperators(J, P)
@@ -685,6 +736,13 @@ class _Step:
         return Outcome(taken=self.t_new - self.t, planned=self.dt, iterations=self.iterations,
                        cuts=self.cuts, error=self.error, order=self.plan.order,
                        doubled=self.middle is not None)
+
+
+def _force_control(problem, t_new: float):
+    """The problem's force control (force_control.DepthControl) if it holds the force in the
+    step to t_new, else None."""
+    control = getattr(problem, "force_control", None)
+    return control if control is not None and control.active(t_new) else None
 
 
 def _is_mark(t: float, marks: Sequence[float]) -> bool:
