@@ -1,0 +1,125 @@
+"""The `scan` scene (3D): a grating of ridges across the finger pressed 0.5 mm, then scanned
+along it at 80 mm/s with Coulomb friction, the afferent populations firing on the receptor
+sites' stress. The physical fact: every quantity of the skin is modulated at the ridge passing
+frequency speed/period, and spikes lock to the ridges' passing over their site. The fast tests
+check the scene as data and the check that refuses a scan running off the grating's end."""
+
+import numpy as np
+import pytest
+
+from fingertip_dolfinx.errors import InputError
+from fingertip_dolfinx.geometry.indenters import Grating
+from fingertip_dolfinx.scene import load_scene, pulp_reach
+from fingertip_dolfinx.studies.signals import steady_state, vector_strength
+
+
+def test_the_scan_scene_moves_a_grating_across_its_ridges_along_the_finger():
+    scene = load_scene("scan")
+    (grating,) = scene.indenters
+    assert isinstance(grating, Grating) and grating.axis == "x"  # profile varies along z
+    assert (grating.width, grating.period, grating.depth) == (1.5, 3.0, 1.0)
+    assert grating.friction > 0 and scene.section.half
+    path = scene.history
+    assert path.direction == (0.0, 1.0)  # along the finger: keeps the mirror symmetry
+    ramp = path.normal.ramp_time
+    assert path.tangential_at(ramp) == 0.0  # pressed first, at rest
+    speed = (path.tangential_at(path.end_time) - path.tangential_at(ramp)) / (
+        path.end_time - ramp)
+    assert speed == pytest.approx(80.0)  # mm/s, the stated speed
+    assert path.tangential_at(path.end_time) >= 2 * grating.period  # at least two periods
+    # At least 4 steps a period: the harmonic at speed/period is resolved (steady_state)
+    assert scene.steps.dt_max * speed <= grating.period / 4
+
+
+def test_the_pulp_reach_is_where_the_lowest_line_rises_by_the_depth():
+    """Along the finger the strip ends on the tip's cap where the undeformed lowest line
+    y = −b(z) has risen by the depth; across it, where the ellipse has."""
+    section = load_scene("scan").section
+    for depth in (0.25, 0.5, 1.0):
+        _, z = pulp_reach(section, depth, "x")
+        assert section.outer_semi_axes(z)[1] == pytest.approx(section.outer.b - depth)
+        lo, x = pulp_reach(section, depth, "z")
+        a, b = section.outer.a, section.outer.b
+        assert lo == -x and b * np.sqrt(1 - (x / a) ** 2) == pytest.approx(b - depth)
+
+
+@pytest.mark.parametrize("override, where", [
+    ("indenters.0.ridges=8", "z = 3 to 15 mm"),  # too short: both ends inside the contact
+    ("indenters.0.centre_z=5.0", "z = 0.5 to 18.5 mm"),  # the proximal end enters at the end
+    ("protocol.tangential.values=[0.0, 0.0, 12.0]", "z = 3 to 18 mm"),  # scanned too far
+])
+def test_a_scan_running_off_the_gratings_end_is_refused(override, where):
+    with pytest.raises(InputError, match="the grating's end would pass through the contact") as e:
+        load_scene("scan", [override])
+    assert where in str(e.value) and "add ridges" in str(e.value)
+
+
+def test_a_bar_scanned_is_its_own_end_and_a_press_without_scan_is_not_checked():
+    load_scene("scan", ["indenters.0.ridges=1"])
+    load_scene("scan", ["indenters.0.ridges=2"])
+    load_scene("grating-3d")  # an "x"-oriented 13-ridge grating only pressed (acuity study)
+
+
+def test_a_2d_grating_slid_across_the_finger_off_its_end_is_refused():
+    base = ["indenters.0.friction=0.5", "protocol.end_time=0.2", "output.times=[0.2]",
+            "protocol.tangential={times = [0.0, 0.1, 0.2], values = [0.0, 0.0, 4.0]}"]
+    load_scene("grating", [*base, "indenters.0.ridges=15"])  # spans ±14 mm: covers the scan
+    # 5 ridges 2 mm apart slid 4 mm: x = 0 to 4 mm covered throughout; the pulp pressed 1 mm
+    # reaches |x| < 4.1 mm
+    with pytest.raises(InputError, match=r"x = 0 to 4 mm throughout"):
+        load_scene("grating", [*base, "indenters.0.ridges=5"])
+
+
+@pytest.mark.parametrize("override, key", [
+    ("indenters.0.width=3.0", "grating.period"),  # ridges touching: no grooves
+    ("indenters.0.depth=0.2", "grating.depth"),  # floor through the rounded corners
+    ("indenters.0.ridges=10.5", "grating.ridges"),
+    ("indenters.0.period=-3.0", "grating.period"),
+])
+def test_a_bad_grating_profile_in_the_scan_scene_is_refused(override, key):
+    with pytest.raises(InputError, match=key):
+        load_scene("scan", [override])
+
+
+def test_the_vector_strength_is_one_for_locked_spikes_and_small_for_uniform_ones():
+    rng = np.random.default_rng(0)
+    assert vector_strength([0.3] * 5 + [0.3 + 2 * np.pi]) == pytest.approx(1.0)
+    # n uniform phases: E[R²] = 1/n, so R ~ 1/sqrt(n); 5/sqrt(n) is far in the tail
+    assert vector_strength(rng.uniform(0, 2 * np.pi, 10_000)) < 5 / np.sqrt(10_000)
+    with pytest.raises(ValueError):
+        vector_strength([])
+
+
+def ridge_phases(scene, times, z_sites) -> np.ndarray:
+    """The phase (rad) of each event in the ridges' passage over its site: 0 when a ridge's
+    centre line is over the site's reference z, 2π a period of travel later."""
+    grating = scene.indenters[0]
+    travel = np.array([scene.history.tangential_at(t) for t in times])
+    return 2 * np.pi * (travel - (np.asarray(z_sites) - grating.centre_z)) / grating.period
+
+
+def check_scan(scene, history: dict, afferents: dict, spikes: dict) -> dict:
+    """The scan's physical checks; returns the measured numbers."""
+    grating, path = scene.indenters[0], scene.history
+    mu, speed = grating.friction, 80.0
+    frequency = speed / grating.period
+    t = history["time_s"]
+    pressure = np.stack([history[f"pressure_{k}"] for k in (
+        "tangential_x_force_N", "normal_force_N", "tangential_z_force_N")])
+    total = np.stack([history[k] for k in (
+        "tangential_x_force_N", "force_N", "tangential_z_force_N")])
+    # Coulomb's law integrated: |f| <= μp at each point, all slipping along the profile's
+    # tangent (uniform in x) in one sense gives F_f = μ R90 F_p, |F_f| = μ|F_p|; sticking or
+    # lateral slip give less.
+    coulomb = np.linalg.norm(total - pressure, axis=0) / (mu * np.linalg.norm(pressure, axis=0))
+    assert np.all(coulomb[t > 0] <= 1 + 1e-6), coulomb.max()
+    # The last two periods of the scan (the first holds the onset of slip): the forces are
+    # modulated at speed/period and repeat from one period to the next.
+    window = t >= path.end_time - 2 / frequency - 1e-9
+    out = {"coulomb_max": float(coulomb[t > 0].max())}
+    for key in ("force_N", "tangential_z_force_N"):
+        z = steady_state(t, history[key], frequency, periods=2.0, trend=True)
+        repeat = history[key][window] - np.interp(t[window] - 1 / frequency, t, history[key])
+        s = history[key][window]
+        out[key] = (abs(z) / abs(s.mean()), np.abs(repeat).max() / (s.max() - s.min()))
+    return out
