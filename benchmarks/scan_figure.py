@@ -18,6 +18,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from fingertip_dolfinx.outputs import read_csv  # noqa: E402
+from fingertip_dolfinx.result import Result  # noqa: E402
 from fingertip_dolfinx.scene import load_scene  # noqa: E402
 from fingertip_dolfinx.studies.signals import steady_state, vector_strength  # noqa: E402
 
@@ -31,6 +32,17 @@ def scan_setup(scene) -> tuple[float, float, float]:
     start, end = path.normal.ramp_time, path.end_time
     speed = (path.tangential_at(end) - path.tangential_at(start)) / (end - start)
     return start, speed, speed / grating.period
+
+
+def window(scene, h: dict) -> tuple[float, float, int]:
+    """(start, end (s), whole periods) of the analysis: the run's last two periods of scan, or
+    its last one when it was stopped before two (its end is the history's last step)."""
+    _, _, f = scan_setup(scene)
+    end = h["time_s"][-1]
+    periods = min(2, int(scene.history.tangential_at(end) // scene.indenters[0].period))
+    if periods < 1:
+        raise SystemExit("the run scanned less than one period: nothing to analyse")
+    return end - periods / f, end, periods
 
 
 def ridge_phases(scene, times, z_sites) -> np.ndarray:
@@ -56,25 +68,27 @@ def force_measures(scene, h: dict) -> dict:
     """Coulomb's ratios and the forces' modulation at the ridge frequency."""
     mu, (_, _, f) = scene.indenters[0].friction, scan_setup(scene)
     t = h["time_s"]
-    window = t >= t[-1] - 2 / f - 1e-9
-    out = {"coulomb": friction_share(h, mu), "window": window,
+    t0, _, periods = window(scene, h)
+    last = t >= t0 - 1e-9
+    out = {"coulomb": friction_share(h, mu), "window": last, "periods": periods,
            "ft_mu_fn": np.hypot(h["tangential_x_force_N"], h["tangential_z_force_N"])
            / (mu * np.abs(h["force_N"]))}
     for k in ("force_N", "tangential_z_force_N"):
-        s = h[k][window]
-        repeat = s - np.interp(t[window] - 1 / f, t, h[k])
+        s = h[k][last]
+        # one period back, where the skin was already slipping (no stick left)
+        back = t[last] - 1 / f >= t[(t > scan_setup(scene)[0]) & (h["stick_area_mm2"] == 0)][0]
+        repeat = s[back] - np.interp(t[last][back] - 1 / f, t, h[k])
         out[k] = {"mean": s.mean(), "peak_to_peak": np.ptp(s),
-                  "harmonic": abs(steady_state(t, h[k], f, periods=2.0, trend=True)),
-                  "repeat": np.abs(repeat).max()}
+                  "harmonic": abs(steady_state(t, h[k], f, periods=periods, trend=True)),
+                  "repeat": np.abs(repeat).max() if back.any() else np.nan}
     return out
 
 
-def spike_measures(scene, afferents: dict, spikes: dict) -> dict:
+def spike_measures(scene, h: dict, afferents: dict, spikes: dict) -> dict:
     """Per class, over the last two periods, afferents under the strip: spikes, vector
     strength of the ridge phases, the population rate's harmonic at f over its mean."""
     start, _, f = scan_setup(scene)
-    end = scene.history.end_time
-    t0 = end - 2 / f
+    t0, end, periods = window(scene, h)
     z_of = dict(zip(afferents["afferent"], afferents["z_mm"]))
     strip = set(afferents["afferent"][np.abs(afferents["x_mm"]) < STRIP_X])
     out = {}
@@ -88,11 +102,11 @@ def spike_measures(scene, afferents: dict, spikes: dict) -> dict:
         if rows.sum() > 0:
             z = [z_of[a] for a in spikes["afferent"][rows]]
             entry["R"] = vector_strength(ridge_phases(scene, times, z))
-            edges = np.linspace(t0, end, 13)  # 6 bins a period
+            edges = np.linspace(t0, end, 6 * periods + 1)  # 6 bins a period
             rate = np.histogram(times, edges)[0] / np.diff(edges) / n_aff
             mid = 0.5 * (edges[1:] + edges[:-1])
             entry["rate_mean"] = rate.mean()
-            entry["rate_harmonic"] = abs(steady_state(mid, rate, f, periods=2.0 - 1e-6))
+            entry["rate_harmonic"] = abs(steady_state(mid, rate, f, periods=periods - 1 / 6))
         out[name] = entry
     return out
 
@@ -127,7 +141,7 @@ def raster_panel(ax, scene, afferents: dict, spikes: dict) -> None:
             [abs(x_of[a]) < STRIP_X for a in spikes["afferent"]], dtype=bool)
         ax.plot(1e3 * spikes["time_s"][rows], [z_of[a] for a in spikes["afferent"][rows]],
                 "|", ms=4, color=colour, label=name)
-    t = np.linspace(0, path.end_time, 200)
+    t = np.linspace(0, path.end_time, 400)
     s = np.array([path.tangential_at(v) for v in t])
     for c in grating.centre_z + grating.centres():
         ax.plot(1e3 * t, c + s, "-", color="0.75", lw=0.6, zorder=0)
@@ -137,9 +151,9 @@ def raster_panel(ax, scene, afferents: dict, spikes: dict) -> None:
               title_fontsize=7)
 
 
-def rates_panel(ax, scene, afferents: dict, spikes: dict) -> None:
+def rates_panel(ax, scene, h: dict, afferents: dict, spikes: dict) -> None:
     _, _, f = scan_setup(scene)
-    end = scene.history.end_time
+    end = window(scene, h)[1]
     edges = np.arange(0, end + 1e-9, 1 / (6 * f))
     strip = np.abs(afferents["x_mm"]) < STRIP_X
     for name, colour in CLASSES.items():
@@ -160,7 +174,7 @@ def rates_panel(ax, scene, afferents: dict, spikes: dict) -> None:
 def main(run: Path, out: Path) -> None:
     scene = load_scene("scan")
     h = read_csv(run / "history.csv")
-    afferents, spikes = read_csv(run / "afferents.csv"), read_csv(run / "spikes.csv")
+    afferents, spikes = Result(run).afferents, Result(run).spikes
     m = force_measures(scene, h)
     fig, axes = plt.subplots(3, 1, figsize=(7.0, 9.0), sharex=True, constrained_layout=True,
                              height_ratios=(3, 4, 3))
@@ -168,11 +182,12 @@ def main(run: Path, out: Path) -> None:
     g = scene.indenters[0]
     axes[0].set_title(f"scan: grating (ridges {g.width:g} mm, period {g.period:g} mm) pressed "
                       f"0.5 mm, scanned along the finger at 80 mm/s; μ = {g.friction:g}",
-                      fontsize=9)
+                      fontsize=8)
     raster_panel(axes[1], scene, afferents, spikes)
-    rates_panel(axes[2], scene, afferents, spikes)
+    rates_panel(axes[2], scene, h, afferents, spikes)
+    axes[2].set_xlim(0, 1e3 * h["time_s"][-1])  # a stopped run: its own end
     fig.savefig(out, dpi=120)
-    report(h, m, spike_measures(scene, afferents, spikes))
+    report(h, m, spike_measures(scene, h, afferents, spikes))
 
 
 def report(h: dict, m: dict, s: dict) -> None:
