@@ -24,7 +24,7 @@ from pathlib import Path
 from .datafiles import builtin_dir, find, read_toml
 from .errors import InputError
 from .geometry.fingertip3d import Fingertip3D, load_fingertip3d, section_dimension
-from .geometry.indenters import Indenter, load_indenter, make_indenter
+from .geometry.indenters import Grating, Indenter, load_indenter, make_indenter
 from .geometry.section import Section, load_section
 from .harmonic_options import HarmonicOptions
 from .loading import KINDS, LoadHistory, TangentialPath, check_tangential_path, history_from_dict
@@ -237,6 +237,9 @@ class Scene:
             raise InputError(f"{self.name}: steps.control", "error control redoes steps as "
                              "two halves at the protocol's depth, which force control finds "
                              "per step instead.", 'use control = "iterations" (the default).')
+        for k, indenter in enumerate(self.indenters):
+            check_scan_coverage(indenter, self.history, self.section,
+                                f"{self.name}: indenters[{k}]")
         if self.model.inertia and self.steps.scheme != "generalized-alpha":
             raise InputError(f"{self.name}: steps.scheme", f"{self.steps.scheme!r} integrates "
                              "no acceleration, but model.inertia is on.",
@@ -312,6 +315,47 @@ TITLE_LENGTH = 60
 _NUMERICAL = ("section.mesh", "steps", "solver", "output", "accuracy")
 #: Short names of indenter sizes in titles.
 _ABBREVIATIONS = {"radius": "r", "width": "w", "centre_x": "x", "centre_z": "z"}
+
+
+def pulp_reach(section, depth: float, axis: str) -> tuple[float, float]:
+    """The strip of pulp an indentation `depth` mm after first touch can reach: where the
+    undeformed pulp's lowest line lies within `depth` of its lowest point (the contact spreads
+    a little further, by the skin's bulge). Across the finger (`axis` "z": the range of x) the
+    outer ellipse's |x| <= a sqrt(1 − (1 − depth/b)²); along it ("x": the range of z, 3D) from
+    the cut z = 0, where the finger continues, to the tip cap's z = cylinder_length +
+    tip_length × the same root (the cap's cross-sections are the ellipse scaled down)."""
+    root = math.sqrt(1.0 - max(1.0 - depth / section.outer.b, 0.0) ** 2)
+    if axis == "x":
+        return 0.0, section.cylinder_length + section.tip_length * root
+    return -section.outer.a * root, section.outer.a * root
+
+
+def check_scan_coverage(indenter: Indenter, history, section, where: str) -> None:
+    """A grating scanned across its ridges (an "x" grating along z, a "z" one along x) must
+    lie under the whole reachable strip (`pulp_reach`) at every point of its path: else its
+    end (an outermost ridge's flank, running down without end) passes through the contact,
+    and the forces and spikes measure that end, not the texture. A bar (1 ridge) or a bar
+    with a gap (2) is its own end: not checked."""
+    if not (isinstance(indenter, Grating) and indenter.ridges > 2
+            and hasattr(history, "tangential_at")):
+        return
+    d_x, d_z = getattr(history, "direction", (1.0, 0.0))
+    along, centre = (d_z, indenter.centre_z) if indenter.axis == "x" else (d_x, indenter.centre_x)
+    if along == 0:
+        return
+    s = [along * v for v in history.tangential.values]
+    lo, hi = pulp_reach(section, history.deepest, indenter.axis)
+    last = float(indenter.centres()[-1])  # the outermost ridges' centres: centre ± last
+    near, far = centre + max(s) - last, centre + min(s) + last
+    if near > lo or far < hi:
+        coordinate = "z" if indenter.axis == "x" else "x"
+        raise InputError(
+            where, f"over its scan the grating covers {coordinate} = {near:.3g} to {far:.3g} "
+            "mm throughout (its outermost ridges' centres at the scan's two ends), but the "
+            f"pulp it presses {history.deepest:g} mm reaches {coordinate} = {lo:.3g} to "
+            f"{hi:.3g} mm: the grating's end would pass through the contact.",
+            f"add ridges (each adds {indenter.period:g} mm), or move centre_{coordinate} or "
+            "shorten the scan.")
 
 
 def _numerical(text: str) -> bool:

@@ -8,6 +8,8 @@ orthogonal to cos and sin over those periods: exact for a pure harmonic plus a c
 for a slow drift (the skin's QLV relaxation under the held press) with `trend=True`, which adds
 a column t. The time-domain and the frequency-domain results compare through Z: |Z| the
 amplitude, arg Z the phase lead relative to cos ωt at t = 0 of `times`.
+
+Spike trains locked to a periodic stimulus: the vector strength of their phases (`vector_strength`).
 """
 
 from __future__ import annotations
@@ -41,3 +43,13 @@ def steady_state(times, signal, frequency: float, periods: float = 3.0, *,
         columns.append(t - t.mean())
     coefficients, *_ = np.linalg.lstsq(np.column_stack(columns), s, rcond=None)
     return complex(coefficients[0], -coefficients[1])
+
+
+def vector_strength(phases) -> float:
+    """Goldberg & Brown's (1969) vector strength R = |mean e^{iφ}| of the events' phases φ
+    (radians) in the stimulus cycle: 1 when every spike falls at the same phase, about
+    1/sqrt(n) for n spikes uniform over the cycle (the mean of n unit vectors at random)."""
+    phi = np.asarray(phases, dtype=float).ravel()
+    if phi.size == 0:
+        raise ValueError("no events: the vector strength needs at least one phase")
+    return float(abs(np.exp(1j * phi).mean()))

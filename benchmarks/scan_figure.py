@@ -1,0 +1,212 @@
+"""The `scan` scene (docs/benchmarks/friction.md, "3D: the `scan` scene"): the forces and
+Coulomb's law over the scan, the afferents' spikes against the ridges passing over their sites
+(a raster by the site's position along the finger, with the ridges' centre lines), and each
+class's population rate; prints the measured numbers: the modulation of the forces and of the
+rates at the ridge frequency speed/period over the last two periods, the forces' repetition
+from one period to the next, and each class's vector strength of its spikes' ridge phases.
+
+Run: `fingertip run scan --out DIR`, then `python benchmarks/scan_figure.py DIR OUT.png`.
+"""
+
+import sys
+from pathlib import Path
+
+import matplotlib
+import numpy as np
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+from fingertip_dolfinx.outputs import read_csv  # noqa: E402
+from fingertip_dolfinx.result import Result  # noqa: E402
+from fingertip_dolfinx.scene import load_scene  # noqa: E402
+from fingertip_dolfinx.studies.signals import steady_state, vector_strength  # noqa: E402
+
+CLASSES = {"SA1": "tab:blue", "RA": "tab:orange", "PC": "tab:green"}
+STRIP_X = 2.0  # mm: afferents under the middle of the contact strip, |x| < this
+
+
+def scan_setup(scene) -> tuple[float, float, float]:
+    """(start of the scan (s), speed (mm/s), ridge frequency speed/period (Hz))."""
+    path, grating = scene.history, scene.indenters[0]
+    start, end = path.normal.ramp_time, path.end_time
+    speed = (path.tangential_at(end) - path.tangential_at(start)) / (end - start)
+    return start, speed, speed / grating.period
+
+
+def window(scene, h: dict) -> tuple[float, float, int]:
+    """(start, end (s), whole periods) of the analysis: the run's last two periods of scan, or
+    its last one when it was stopped before two (its end is the history's last step)."""
+    _, _, f = scan_setup(scene)
+    end = h["time_s"][-1]
+    periods = min(2, int(scene.history.tangential_at(end) // scene.indenters[0].period))
+    if periods < 1:
+        raise SystemExit("the run scanned less than one period: nothing to analyse")
+    return end - periods / f, end, periods
+
+
+def ridge_phases(scene, times, z_sites) -> np.ndarray:
+    """The phase (rad) of each event in the ridges' passage over its site: 0 when a ridge's
+    centre line is over the site's reference z, 2π a period of travel later."""
+    grating = scene.indenters[0]
+    travel = np.array([scene.history.tangential_at(t) for t in times])
+    return 2 * np.pi * (travel - (np.asarray(z_sites) - grating.centre_z)) / grating.period
+
+
+def friction_share(h: dict, mu: float) -> np.ndarray:
+    """(F_z − F_p,z)/(μ F_p,y): the friction's share of the force along the scan over μ times
+    the pressure's normal force. The ridges run across the finger, so every normal n lies in
+    the (y, z) plane (F_p,x = 0); in gross slip along the profile the friction traction is μp
+    along the tangent R n, the same way everywhere, so F_f = μ R F_p: F_f,z = μ F_p,y and
+    F_f,y = −μ F_p,z, whence F_p,y = F_y + μ F_p,z (history.csv has F_y = F_p,y + F_f,y, F_z
+    and F_p,z). The ratio is 1 in gross slip, below 1 where some of the contact sticks."""
+    pz = h["pressure_tangential_z_force_N"]
+    return (h["tangential_z_force_N"] - pz) / (mu * (h["force_N"] + mu * pz))
+
+
+def force_measures(scene, h: dict) -> dict:
+    """Coulomb's ratios and the forces' modulation at the ridge frequency."""
+    mu, (_, _, f) = scene.indenters[0].friction, scan_setup(scene)
+    t = h["time_s"]
+    t0, _, periods = window(scene, h)
+    last = t >= t0 - 1e-9
+    out = {"coulomb": friction_share(h, mu), "window": last, "periods": periods,
+           "ft_mu_fn": np.hypot(h["tangential_x_force_N"], h["tangential_z_force_N"])
+           / (mu * np.abs(h["force_N"]))}
+    for k in ("force_N", "tangential_z_force_N"):
+        s = h[k][last]
+        # one period back, where the skin was already slipping (no stick left)
+        back = t[last] - 1 / f >= t[(t > scan_setup(scene)[0]) & (h["stick_area_mm2"] == 0)][0]
+        repeat = s[back] - np.interp(t[last][back] - 1 / f, t, h[k])
+        out[k] = {"mean": s.mean(), "peak_to_peak": np.ptp(s),
+                  "harmonic": abs(steady_state(t, h[k], f, periods=periods, trend=True)),
+                  "repeat": np.abs(repeat).max() if back.any() else np.nan}
+    return out
+
+
+def spike_measures(scene, h: dict, afferents: dict, spikes: dict) -> dict:
+    """Per class, over the last two periods, afferents under the strip: spikes, vector
+    strength of the ridge phases, the population rate's harmonic at f over its mean."""
+    start, _, f = scan_setup(scene)
+    t0, end, periods = window(scene, h)
+    z_of = dict(zip(afferents["afferent"], afferents["z_mm"]))
+    strip = set(afferents["afferent"][np.abs(afferents["x_mm"]) < STRIP_X])
+    out = {}
+    for name in CLASSES:
+        rows = ((spikes["class"] == name) & (spikes["time_s"] >= t0)
+                & np.isin(spikes["afferent"], list(strip)))
+        times = spikes["time_s"][rows]
+        n_aff = int(np.sum((afferents["class"] == name) & np.isin(afferents["afferent"],
+                                                                   list(strip))))
+        entry = {"afferents": n_aff, "spikes": int(rows.sum())}
+        if rows.sum() > 0:
+            z = [z_of[a] for a in spikes["afferent"][rows]]
+            entry["R"] = vector_strength(ridge_phases(scene, times, z))
+            edges = np.linspace(t0, end, 6 * periods + 1)  # 6 bins a period
+            rate = np.histogram(times, edges)[0] / np.diff(edges) / n_aff
+            mid = 0.5 * (edges[1:] + edges[:-1])
+            entry["rate_mean"] = rate.mean()
+            entry["rate_harmonic"] = abs(steady_state(mid, rate, f, periods=periods - 1 / 6))
+        out[name] = entry
+    return out
+
+
+def forces_panel(ax, scene, h: dict, m: dict) -> None:
+    start, _, _ = scan_setup(scene)
+    t = 1e3 * h["time_s"]
+    ax.plot(t, 1e3 * h["force_N"], "k-", label="normal force $F_n$ (half model)")
+    ax.plot(t, 1e3 * h["tangential_z_force_N"], "-", color="tab:red",
+            label="tangential force $F_z$")
+    ax.plot(t, 1e3 * h["pressure_tangential_z_force_N"], ":", color="tab:purple",
+            label="its pressure share (ridges' flanks)")
+    ax.set_ylabel("force (mN)")
+    ax.axvline(1e3 * start, color="0.6", lw=0.8)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7, loc="upper left")
+    ratio = ax.twinx()
+    ratio.plot(t, m["ft_mu_fn"], "--", color="tab:red", lw=0.9)
+    ratio.plot(t, m["coulomb"], "--", color="tab:green", lw=0.9)
+    ratio.set_ylabel(r"$|F_t|/(\mu F_n)$ (red), $F_{f,z}/(\mu F_{p,y})$ (green)", fontsize=8)
+    ratio.set_ylim(0, 1.6)
+
+
+def raster_panel(ax, scene, afferents: dict, spikes: dict) -> None:
+    """Each spike at (time, its site's z) for the afferents under the strip, with the
+    ridges' centre lines z = centre_z + s(t) + kP sweeping up."""
+    grating, path = scene.indenters[0], scene.history
+    z_of = dict(zip(afferents["afferent"], afferents["z_mm"]))
+    x_of = dict(zip(afferents["afferent"], afferents["x_mm"]))
+    for name, colour in CLASSES.items():
+        rows = (spikes["class"] == name) & np.array(
+            [abs(x_of[a]) < STRIP_X for a in spikes["afferent"]], dtype=bool)
+        ax.plot(1e3 * spikes["time_s"][rows], [z_of[a] for a in spikes["afferent"][rows]],
+                "|", ms=4, color=colour, label=name)
+    t = np.linspace(0, path.end_time, 400)
+    s = np.array([path.tangential_at(v) for v in t])
+    for c in grating.centre_z + grating.centres():
+        ax.plot(1e3 * t, c + s, "-", color="0.75", lw=0.6, zorder=0)
+    ax.set_ylim(0, 18)
+    ax.set_ylabel(f"site z (mm), |x| < {STRIP_X:g} mm")
+    ax.legend(fontsize=7, loc="upper left", ncol=3, title="spikes; grey: ridge centres",
+              title_fontsize=7)
+
+
+def rates_panel(ax, scene, h: dict, afferents: dict, spikes: dict) -> None:
+    _, _, f = scan_setup(scene)
+    end = window(scene, h)[1]
+    edges = np.arange(0, end + 1e-9, 1 / (6 * f))
+    strip = np.abs(afferents["x_mm"]) < STRIP_X
+    for name, colour in CLASSES.items():
+        ids = afferents["afferent"][strip & (afferents["class"] == name)]
+        times = spikes["time_s"][np.isin(spikes["afferent"], ids)]
+        rate = np.histogram(times, edges)[0] / np.diff(edges) / max(len(ids), 1)
+        ax.stairs(rate, 1e3 * edges, color=colour, label=f"{name} ({len(ids)} afferents)")
+    for k in range(1, 20):
+        tk = end - k / f
+        if tk > scan_setup(scene)[0]:
+            ax.axvline(1e3 * tk, color="0.8", lw=0.6, zorder=0)
+    ax.set_ylabel("population rate\n(spikes/s per afferent)")
+    ax.set_xlabel("time (ms): pressed to 25 ms, then scanned at 80 mm/s")
+    ax.legend(fontsize=7, loc="upper left")
+    ax.grid(alpha=0.3, axis="y")
+
+
+def main(run: Path, out: Path) -> None:
+    scene = load_scene("scan")
+    h = read_csv(run / "history.csv")
+    afferents, spikes = Result(run).afferents, Result(run).spikes
+    m = force_measures(scene, h)
+    fig, axes = plt.subplots(3, 1, figsize=(7.0, 9.0), sharex=True, constrained_layout=True,
+                             height_ratios=(3, 4, 3))
+    forces_panel(axes[0], scene, h, m)
+    g = scene.indenters[0]
+    axes[0].set_title(f"scan: grating (ridges {g.width:g} mm, period {g.period:g} mm) pressed "
+                      f"0.5 mm, scanned along the finger at 80 mm/s; μ = {g.friction:g}",
+                      fontsize=8)
+    raster_panel(axes[1], scene, afferents, spikes)
+    rates_panel(axes[2], scene, h, afferents, spikes)
+    axes[2].set_xlim(0, 1e3 * h["time_s"][-1])  # a stopped run: its own end
+    fig.savefig(out, dpi=120)
+    report(h, m, spike_measures(scene, h, afferents, spikes))
+
+
+def report(h: dict, m: dict, s: dict) -> None:
+    scanning = h["tangential_z_displacement_mm"] > 0
+    c = m["coulomb"]
+    w = m["window"]
+    print(f"max F_fz/(mu F_py) = {c.max():.12g}; last two periods: {c[w].min():.12g}"
+          f" .. {c[w].max():.12g}")
+    r = m["ft_mu_fn"][scanning]
+    print(f"|Ft|/(mu Fn) over the scan: {r.min():.3g} .. {r.max():.3g}")
+    for k in ("force_N", "tangential_z_force_N"):
+        print(k, {a: f"{b:.4g}" for a, b in m[k].items()})
+    for k in ("time_s", "tangential_z_displacement_mm", "force_N", "tangential_z_force_N",
+              "pressure_tangential_z_force_N", "tangential_x_force_N", "contact_area_mm2",
+              "stick_area_mm2", "newton_iterations", "cuts", "wall_time_s"):
+        print(f"{k:32s}", " ".join(f"{v:.4g}" for v in h[k]))
+    for name, e in s.items():
+        print(name, {a: (f"{b:.3g}" if isinstance(b, float) else b) for a, b in e.items()})
+
+
+if __name__ == "__main__":
+    main(Path(sys.argv[1]), Path(sys.argv[2]))
