@@ -2,10 +2,11 @@
 
 Prints dofs, steps, Newton iterations, Krylov iterations (of the iterative route; 0 with
 MUMPS; history.csv has them per step, so a run stopped early still tells them), time per
-step, the stepping and total wall time, the peak resident memory per rank (max over ranks)
+step, the stepping and total wall time, the peak resident memory of each rank (VmHWM)
 and in all, the CPU seconds per rank and the load average (on a shared machine the wall time
 measures the neighbours too; under MPI the CPU time includes the ranks' busy waiting), and
-the assembly's share. Run it for two sizes and 1-2 ranks:
+the assembly's share, and the set-up's parts (meshing, form compilation, the solver).
+Run it for two sizes and 1-2 ranks:
 
     .venv/bin/python benchmarks/fingertip_3d.py --min-size 0.4
     .venv/bin/python benchmarks/fingertip_3d.py --min-size 0.4 --linear iterative \\
@@ -30,8 +31,10 @@ from mpi4py import MPI
 from timing import tally
 
 import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
+from fingertip_dolfinx.errors import RunInterrupted
 from fingertip_dolfinx.runner import Run, run_scene
 from fingertip_dolfinx.scene import load_scene
+from fingertip_dolfinx.stepping.stepper import TimeStepper
 
 
 def main():
@@ -58,24 +61,55 @@ def main():
     from petsc4py import PETSc
 
     PETSc.Log.begin()  # the linear solver's events: solve, preconditioner set-up, LU
-    jacobian = tally(dolfinx.fem.petsc, "assemble_jacobian")
-    residual = tally(dolfinx.fem.petsc, "assemble_residual")
-    phases = {"set-up (mesh, forms, solver)": tally(Run, "__init__"),
-              "output per step (history, fields, checkpoint)": tally(Run, "on_step"),
-              "summary and figures": tally(Run, "finish")}
+    tallies = {"jacobian": tally(dolfinx.fem.petsc, "assemble_jacobian"),
+               "residual": tally(dolfinx.fem.petsc, "assemble_residual"),
+               "set-up (mesh, forms, solver)": tally(Run, "__init__"),
+               "of which meshing (gmsh, distribution, mesh.xdmf)": tally(Run, "_mesh"),
+               "of which form compilation (FFCx, or the cache)": tally(dolfinx.jit, "ffcx_jit"),
+               "of which the solver (forms, vectors, matrices)": tally(TimeStepper, "__init__"),
+               "output per step (history, fields, checkpoint)": tally(Run, "on_step"),
+               "summary and figures": tally(Run, "finish")}
+    announce_set_up(tallies, comm)
     load = os.getloadavg()
     started, cpu = time.perf_counter(), time.process_time()
-    summary = run_scene(scene, out, progress=False)
+    try:
+        summary = run_scene(scene, out, progress=False)
+    except RunInterrupted as stop:  # SIGINT/SIGTERM: the figures of the steps done
+        summary = stop.summary
     wall = time.perf_counter() - started
     cpu = comm.gather(time.process_time() - cpu, root=0)
     rss = comm.gather(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, root=0)
-    if comm.rank != 0:
-        return
+    if comm.rank == 0:
+        report(scene, summary, args.linear, tallies, (wall, cpu, rss, load), out, PETSc)
+
+
+def announce_set_up(tallies: dict, comm) -> None:
+    """Print the set-up's parts as soon as the run is set up (before its first step), so that
+    a large run stopped in its first step still tells them."""
+    init = Run.__init__  # already tallied
+
+    def init_then_print(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        rss = comm.gather(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, root=0)
+        if comm.rank == 0:
+            print(f"set up: {self.dofs} dofs; " + ", ".join(
+                f"{name} {t.wall:.1f} / {t.cpu:.1f} s" for name, t in tallies.items()
+                if "set-up" in name or "of which" in name) + "; peak memory per rank "
+                + ", ".join(f"{r:.0f}" for r in rss) + " MiB", flush=True)
+
+    Run.__init__ = init_then_print
+
+
+def report(scene, summary: dict, linear: str, tallies: dict, measured: tuple, out: Path,
+           PETSc) -> None:
+    """Print the run's figures (rank 0): sizes, iterations, times, phases, memory, force."""
+    wall, cpu, rss, load = measured
+    size = len(cpu)
     steps, its = summary["time_steps"], summary["newton_iterations"]
-    krylov = summary["krylov_iterations"] if args.linear == "iterative" else 0
+    krylov = summary["krylov_iterations"] if linear == "iterative" else 0
     print(f"scene {scene.name}: min_size {scene.section.section.mesh.min_size} mm, "
-          f"{summary['mesh']['cells']} cells, {summary['dofs']} dofs, {comm.size} rank(s), "
-          f"linear solver {args.linear}")
+          f"{summary['mesh']['cells']} cells, {summary['dofs']} dofs, {size} rank(s), "
+          f"linear solver {linear}")
     print(f"steps {steps}, Newton iterations {its} ({its / max(steps, 1):.2f} per step), "
           f"Krylov iterations {krylov} ({krylov / max(its, 1):.1f} per Newton iteration)")
     print(f"stepping {summary['wall_time_s']:.1f} s ({summary['wall_time_s'] / max(steps, 1):.2f}"
@@ -83,26 +117,28 @@ def main():
     print(f"CPU time per rank {', '.join(f'{c:.0f}' for c in cpu)} s (meshing and compilation "
           f"included); load average {load[0]:.2f} at the start, {os.getloadavg()[0]:.2f} at the "
           f"end (the machine is shared)")
-    (jw, jc), (rw, rc) = jacobian.per_call(), residual.per_call()
-    print(f"assembly on rank 0 (wall / CPU s per call): Jacobian {jacobian.calls} x "
-          f"{jw:.2f} / {jc:.2f}, residual {residual.calls} x {rw:.3f} / {rc:.3f}; quadrature "
-          f"degree {scene.model.quadrature_degree}")
+    (jw, jc), (rw, rc) = tallies["jacobian"].per_call(), tallies["residual"].per_call()
+    print(f"assembly on rank 0 (wall / CPU s per call): Jacobian {tallies['jacobian'].calls} x "
+          f"{jw:.2f} / {jc:.2f}, residual {tallies['residual'].calls} x {rw:.3f} / {rc:.3f}; "
+          f"quadrature degree {scene.model.quadrature_degree}")
     print(f"linear solver on rank 0 (wall s in all / calls): {solver_events(PETSc)}")
+    phases = {k: t for k, t in tallies.items() if k not in ("jacobian", "residual")}
     print("phases on rank 0 (wall / CPU s in all, calls): " + ", ".join(
         f"{name} {t.wall:.1f} / {t.cpu:.1f} ({t.calls})" for name, t in phases.items()))
-    print(f"peak memory: {max(rss):.0f} MiB per rank (max), {sum(rss):.0f} MiB in all")
+    print(f"peak memory (VmHWM) per rank: {', '.join(f'{r:.0f}' for r in rss)} MiB; "
+          f"{sum(rss):.0f} MiB in all, {sum(rss) * 1024 / summary['dofs']:.1f} KiB per dof")
     print(f"peak force {summary['peak_force_N']:.4g} N (x{summary['mirror_factor']} for the "
           f"whole finger); results in {out}")
 
 
 def solver_events(PETSc) -> str:
     """PETSc's wall seconds and calls of the linear solves (KSPSolve, which includes the
-    preconditioner's set-up, PCSetUp) and of LU factorisations (MUMPS, or the stiff block's:
-    the analysis and ordering MatLUFactorSym, the numerical factorisation MatLUFactorNum, the
-    triangular solves MatSolve)."""
+    preconditioner's set-up, PCSetUp, of which GAMG's, PCSetUp_GAMG+) and of LU factorisations
+    (MUMPS, or the stiff block's: the analysis and ordering MatLUFactorSym, the numerical
+    factorisation MatLUFactorNum, the triangular solves MatSolve)."""
     parts = []
-    for name in ("SNESSolve", "KSPSolve", "PCSetUp", "MatLUFactorSym", "MatLUFactorNum",
-                 "MatSolve"):
+    for name in ("SNESSolve", "KSPSolve", "PCSetUp", "PCSetUp_GAMG+", "MatLUFactorSym",
+                 "MatLUFactorNum", "MatSolve"):
         info = PETSc.Log.Event(name).getPerfInfo()
         parts.append(f"{name} {info.get('time', 0.0):.1f} s / {info.get('count', 0)}")
     return ", ".join(parts)
