@@ -151,6 +151,9 @@ def check_scan(scene, h: dict, afferents: dict, spikes: dict) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="with the penalty friction's elastic slip kept, the run "
+                   "stops at 2.4 mm of scan, where a ridge's edge reaches the proximal cut "
+                   "(docs/benchmarks/friction.md, the scan scene)")
 def test_the_scan_modulates_forces_and_spikes_at_the_ridge_frequency(tmp_path):
     from fingertip_dolfinx.outputs import read_csv
     from fingertip_dolfinx.result import Result
