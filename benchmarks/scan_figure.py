@@ -120,9 +120,10 @@ def forces_panel(ax, scene, h: dict, m: dict) -> None:
     ax.plot(t, 1e3 * h["pressure_tangential_z_force_N"], ":", color="tab:purple",
             label="its pressure share (ridges' flanks)")
     ax.set_ylabel("force (mN)")
+    ax.set_ylim(top=1.35e3 * np.max(h["force_N"]))  # room for the legend above the peak
     ax.axvline(1e3 * start, color="0.6", lw=0.8)
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, loc="upper left")
+    ax.legend(fontsize=7, loc="upper left", ncol=3)
     ratio = ax.twinx()
     ratio.plot(t, m["ft_mu_fn"], "--", color="tab:red", lw=0.9)
     ratio.plot(t, m["coulomb"], "--", color="tab:green", lw=0.9)
