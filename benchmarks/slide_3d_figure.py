@@ -17,7 +17,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
 from fingertip_dolfinx.outputs import read_csv  # noqa: E402
-from fingertip_dolfinx.plotting.figures import STATE_COLOURS  # noqa: E402
+from fingertip_dolfinx.plotting.figures import STATE_COLOURS, stick_slip_grid  # noqa: E402
 from fingertip_dolfinx.result import Result  # noqa: E402
 
 TRAVEL = "tangential_z_displacement_mm"
@@ -32,14 +32,9 @@ def slide_steps(h: dict) -> np.ndarray:
 def stick_slip_map(ax, run: Path, h: dict, steps: np.ndarray) -> None:
     s = read_csv(run / "stick_slip.csv")
     travel = h[TRAVEL][steps]
-    z = np.unique(s["z_mm"])
-    state = np.full((len(z), len(steps)), np.nan)
-    for j, t in enumerate(h["time_s"][steps]):
-        rows = np.isclose(s["time_s"], t, rtol=0, atol=1e-12)
-        state[np.searchsorted(z, s["z_mm"][rows]), j] = s["contact_state"][rows]
+    _, z_edges, state = stick_slip_grid(s, "z_mm", h["time_s"][steps])
     c_edges = np.concatenate([[travel[0] - 0.05], 0.5 * (travel[1:] + travel[:-1]),
                               [travel[-1]]])
-    z_edges = np.concatenate([[z[0]], 0.5 * (z[1:] + z[:-1]), [z[-1]]])
     ax.pcolormesh(c_edges, z_edges, state, cmap=matplotlib.colors.ListedColormap(STATE_COLOURS),
                   vmin=-0.5, vmax=2.5)
     ax.plot(travel, 8.0 + travel, "k--", lw=0.8, label="probe's centre")

@@ -16,7 +16,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
 from fingertip_dolfinx.outputs import read_csv  # noqa: E402
-from fingertip_dolfinx.plotting.figures import STATE_COLOURS  # noqa: E402
+from fingertip_dolfinx.plotting.figures import STATE_COLOURS, stick_slip_grid  # noqa: E402
 from fingertip_dolfinx.result import Result  # noqa: E402
 
 
@@ -30,14 +30,9 @@ def slide_steps(h: dict) -> np.ndarray:
 def stick_slip_map(ax, run: Path, h: dict, steps: np.ndarray) -> None:
     s = read_csv(run / "stick_slip.csv")
     travel = h["tangential_displacement_mm"][steps]
-    x = np.unique(s["x_mm"])
-    state = np.full((len(x), len(steps)), np.nan)
-    for j, t in enumerate(h["time_s"][steps]):
-        rows = np.isclose(s["time_s"], t, rtol=0, atol=1e-12)
-        state[np.searchsorted(x, s["x_mm"][rows]), j] = s["contact_state"][rows]
+    _, x_edges, state = stick_slip_grid(s, "x_mm", h["time_s"][steps])
     c_edges = np.concatenate([[travel[0] - 0.01], 0.5 * (travel[1:] + travel[:-1]),
                               [travel[-1]]])
-    x_edges = np.concatenate([[x[0]], 0.5 * (x[1:] + x[:-1]), [x[-1]]])
     ax.pcolormesh(c_edges, x_edges, state, cmap=matplotlib.colors.ListedColormap(STATE_COLOURS),
                   vmin=-0.5, vmax=2.5)
     ax.set_ylim(-2.5, 1.5)

@@ -206,15 +206,25 @@ def plot_friction(stick_slip: dict, history: dict, path: Path, mu: float,
     fig.savefig(path, dpi=150)
 
 
+def stick_slip_grid(stick_slip: dict, key: str, times=None) -> tuple:
+    """stick_slip.csv's states as a grid for pcolormesh: the surface points' reference
+    coordinate `key` (sorted), its cell edges (midpoints, the ends at the end points) and
+    the state (0 free, 1 slip, 2 stick; NaN where a point has no row) of each point at each
+    of `times` (default: every step's), one column a time."""
+    times = np.unique(stick_slip["time_s"]) if times is None else np.asarray(times)
+    x = np.unique(stick_slip[key])
+    state = np.full((len(x), len(times)), np.nan)
+    for j, t in enumerate(times):
+        rows = np.isclose(stick_slip["time_s"], t, rtol=0, atol=1e-12)
+        state[np.searchsorted(x, stick_slip[key][rows]), j] = stick_slip["contact_state"][rows]
+    return x, np.concatenate([[x[0]], 0.5 * (x[1:] + x[:-1]), [x[-1]]]), state
+
+
 def _state_map(ax, stick_slip: dict, key: str, label: str) -> None:
     """Each surface point's state (free, slip, stick) at each step: its reference coordinate
     `key` against time (a step's state fills the interval that ends at it)."""
-    times, x = np.unique(stick_slip["time_s"]), np.unique(stick_slip[key])
-    state = np.full((len(x), len(times)), np.nan)
-    state[np.searchsorted(x, stick_slip[key]),
-          np.searchsorted(times, stick_slip["time_s"])] = stick_slip["contact_state"]
-    t_edges = np.concatenate([[0.0], times])
-    x_edges = np.concatenate([[x[0]], 0.5 * (x[1:] + x[:-1]), [x[-1]]])
+    _, x_edges, state = stick_slip_grid(stick_slip, key)
+    t_edges = np.concatenate([[0.0], np.unique(stick_slip["time_s"])])
     colours = matplotlib.colors.ListedColormap(STATE_COLOURS)
     ax.pcolormesh(t_edges, x_edges, state, cmap=colours, vmin=-0.5, vmax=2.5)
     ax.legend(handles=[Patch(color=c, label=n) for c, n in
