@@ -30,7 +30,7 @@ from .harmonic_options import HarmonicOptions
 from .loading import KINDS, LoadHistory, TangentialPath, check_tangential_path, history_from_dict
 from .model import ModelOptions
 from .physics.tissues import DEFAULT_SET, WU2004, Tissues, load_materials
-from .stepping.options import StepOptions, check_linear
+from .stepping.options import StepOptions, check_linear, check_petsc_options
 from .validation import check_keys, positive
 
 #: The built-in scenes (inside the package: `fingertip_dolfinx/data/scenes/`).
@@ -738,7 +738,7 @@ def _petsc_options(data: Mapping, where: str) -> dict:
     if not isinstance(extra, Mapping):
         raise InputError(f"{where}.petsc_options", f"must be a table, got {extra!r}.",
                          "write petsc_options = { ksp_rtol = 1e-10 }.")
-    return options | dict(extra)
+    return check_petsc_options(options | dict(extra), where)
 
 
 def _materials(data: Mapping, where: str) -> Tissues:

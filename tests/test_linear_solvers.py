@@ -238,3 +238,20 @@ def test_scene_chooses_the_linear_solver():
     with pytest.raises(InputError) as error:
         load_scene("1pt", ["solver.linear=cg"])
     assert "solver.linear" in error.value.where and "'iterative'" in error.value.fix
+
+
+@pytest.mark.parametrize("option", ["pc_type=cholesky", "petsc_options.pc_type=icc"])
+def test_a_scene_cannot_ask_for_a_symmetric_factorisation(option):
+    """The Jacobian is unsymmetric (pressure coupling, contact, friction): a Cholesky or ICC
+    factor of one triangle would be a wrong Newton direction, refused with the key named."""
+    with pytest.raises(InputError) as error:
+        load_scene("line-load", [f"solver.{option}"])
+    assert error.value.where.endswith("pc_type") and "lu" in error.value.fix
+
+
+def test_the_stepper_refuses_a_symmetric_factorisation_from_the_api():
+    from fingertip_dolfinx.stepping.options import check_petsc_options
+
+    assert check_petsc_options({"pc_type": "lu"}) == {"pc_type": "lu"}
+    with pytest.raises(InputError, match="symmetric"):
+        check_petsc_options({"fieldsplit_u_pc_type": "cholesky"}, "petsc_options")

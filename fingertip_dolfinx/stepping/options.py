@@ -46,6 +46,28 @@ def check_linear(linear, where: str = "solver.linear") -> str:
     return linear
 
 
+#: Factorisations that read one triangle of the matrix and assume the other.
+SYMMETRIC_FACTORISATIONS = ("cholesky", "icc")
+
+
+def check_petsc_options(options, where: str = "solver") -> dict:
+    """`options` if no preconditioner in them assumes a symmetric Jacobian, else an InputError.
+
+    The Jacobian is not symmetric: the biphasic coupling enters the pressure rows with the
+    opposite sign (symmetric only with them negated), Nitsche's θ = 0 contact and friction are
+    unsymmetric, and the Darcy term's derivative in u is unsymmetric in any sign. A Cholesky
+    or ICC factor would be built from one triangle of it: a wrong Newton direction that shows
+    only as failing steps (benchmarks/jacobian_symmetry.py measures the asymmetry).
+    """
+    for key, value in options.items():
+        if key.endswith("pc_type") and str(value).lower() in SYMMETRIC_FACTORISATIONS:
+            raise InputError(f"{where}.{key}", f"{value!r} assumes a symmetric Jacobian; "
+                             "this model's is not (the pressure coupling, contact, friction).",
+                             'use pc_type = "lu" (the default), or the iterative route '
+                             '(linear = "iterative").')
+    return options
+
+
 @dataclass
 class StepOptions:
     """Adaptive time-step control, a scene's `[steps]` table (times in s).

@@ -91,7 +91,13 @@ from .diagnosis import (
     newton_failure,
 )
 from .linear import DIRECT_OPTIONS, LinearSolver
-from .options import DEFAULT_PETSC_OPTIONS, SECOND_ORDER_RATE, StepOptions, StepReport
+from .options import (
+    DEFAULT_PETSC_OPTIONS,
+    SECOND_ORDER_RATE,
+    StepOptions,
+    StepReport,
+    check_petsc_options,
+)
 
 
 class Steppable(Protocol):
@@ -160,7 +166,8 @@ class TimeStepper:
         #: The linear solver inside Newton (linear.py): "direct" (MUMPS) or "iterative".
         self.linear = LinearSolver(linear, problem)
         newton = {k: v for k, v in DEFAULT_PETSC_OPTIONS.items() if k not in DIRECT_OPTIONS}
-        opts = {**newton, **self.linear.options, **(petsc_options or {})}
+        opts = {**newton, **self.linear.options,
+                **check_petsc_options(petsc_options or {}, "petsc_options")}
         # One NonlinearProblem for the whole run: its forms are compiled here, once.
         self.nonlinear = dolfinx.fem.petsc.NonlinearProblem(
             problem.residuals,
