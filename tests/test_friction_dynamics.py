@@ -114,3 +114,34 @@ def test_a_frictional_scene_with_a_nitsche_theta_other_than_0_is_refused_when_lo
     scene = load_scene("slide", ["model.inertia=true", 'steps.scheme="generalized-alpha"',
                                  'model.contact="penalty"'])
     assert scene.model.inertia and scene.indenters[0].friction == 0.5
+
+
+DYNAMIC = ["model.inertia=true", 'steps.scheme="generalized-alpha"']
+
+
+def test_friction_with_inertia_refuses_nitsches_contact_when_loaded():
+    # Nitsche's θ = 0 force derives from no potential: with inertia it fed energy into the
+    # dragged block (the balance's error grew at the smallest step, the contact's work reached
+    # −0.13 of the plate's), and was only warned about. The slide scene's own contact with
+    # inertia switched on is now refused, with the penalty as the fix.
+    from fingertip_dolfinx.scene import load_scene
+
+    with pytest.raises(InputError, match=r"slide: model\.contact.*penalty"):
+        load_scene("slide", DYNAMIC)
+    # frictionless dynamic runs keep Nitsche's contact (the stepper's warning, as before)
+    frictionless = load_scene("slide", DYNAMIC + ["indenters.0.friction=0.0"])
+    assert frictionless.model.contact == "nitsche" and frictionless.model.inertia
+
+
+def test_friction_with_inertia_refuses_nitsches_contact_when_built():
+    import dataclasses
+
+    from fingertip_dolfinx.geometry.mesh import build_mesh
+    from fingertip_dolfinx.problem import FingertipProblem
+    from fingertip_dolfinx.scene import load_scene
+
+    scene = load_scene("slide", DYNAMIC + ['model.contact="penalty"'])
+    nitsche = dataclasses.replace(scene.model, contact="nitsche")
+    with pytest.raises(InputError, match=r"model\.contact.*penalty"):
+        FingertipProblem(build_mesh(scene.section), scene.indenters, scene.history,
+                         scene.materials, nitsche, friction=0.5)
