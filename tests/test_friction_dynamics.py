@@ -167,3 +167,20 @@ def test_the_acceleration_after_a_velocity_step_makes_the_first_step_carry_its_i
     assert data.mass * first["velocity"] == pytest.approx(first["force_x"] * dt, rel=2e-2)
     balance = energy_balance(rows)  # measured 1.4e-4 of W over 2 s (from a = 0: −6.1e-2)
     assert abs(balance["error"]) < 2e-3 * balance["work"], balance
+
+
+def test_a_failed_step_with_friction_and_inertia_names_the_onset_and_the_penalty_that_works():
+    # The slide scene with inertia and the penalty at γ0 = 100 failed at the onset of sliding
+    # (the bar's velocity jump: the skin that sticks in the first step gets up to twice the
+    # bar's speed from Newmark's update) with the generic advice only; γ0 = 10 ran.
+    from types import SimpleNamespace
+
+    from fingertip_dolfinx.stepping.diagnosis import cuts_error, dynamic_friction_note
+
+    dynamic = SimpleNamespace(inertia=object(), friction=object())
+    text = str(cuts_error(0.1003, 0.10032, (0.5, 0.5), 5, "Newton did not converge", 0,
+                          dynamic_friction_note(dynamic)))
+    assert "model.contact_gamma0 = 10" in text and "tangential velocity" in text
+    for other in (SimpleNamespace(inertia=None, friction=object()),  # quasi-static
+                  SimpleNamespace(inertia=object(), friction=None)):  # frictionless
+        assert dynamic_friction_note(other) == ""
