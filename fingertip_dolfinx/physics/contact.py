@@ -32,7 +32,8 @@ feed the stiff modes of the contact's edges (flutter): on the coarse fingertip a
 unresolved oscillation of the contact zone grew until Newton failed with θ = 0, and decayed
 with the penalty (the runs: docs/benchmarks/measurements.md). It is the space discretisation,
 not the integrator: only enough numerical dissipation (ρ∞, or a longer Δt) hides it.
-`NitscheContact.conservative` says which laws are safe; the time stepper warns about the others.
+`NitscheContact.conservative` says which laws are safe; the time stepper warns about the others,
+and friction with inertia refuses them (friction.check_dynamic_contact).
 """
 
 from __future__ import annotations

@@ -84,13 +84,15 @@ def dynamic_friction_note(problem) -> str:
     the first step after it the velocity of Newmark's update, (γ/β) Δu/Δt, up to twice the
     indenter's whatever Δt (measured: 140 mm/s under a bar at 80 mm/s), so the next step
     starts with the skin overtaking the indenter; with the penalty at γ0 = 100 Newton did not
-    converge down to Δt = 20 µs, at γ0 = 10 it did (docs/benchmarks/friction.md)."""
+    converge down to Δt = 20 µs, at γ0 = 10 it did, and at γ0 = 100 with ρ∞ = 0 (which takes
+    the highest modes' velocity out in one step; docs/benchmarks/friction.md)."""
     if getattr(problem, "inertia", None) is None or getattr(problem, "friction", None) is None:
         return ""
     return (" With friction and inertia, a jump of an indenter's tangential velocity (a kink "
             "of the path) sends the skin that sticks in the step after it at up to twice the "
             "indenter's speed: use model.contact_gamma0 = 10 (the default; γ0 = 100 failed "
-            "there), or a tangential path whose speed rises over several steps.")
+            "there), steps.rho_inf = 0 (damps that overshoot within a step), or a tangential "
+            "path whose speed rises over several steps.")
 
 
 def newton_failure(reason: int, where: tuple[float, ...] | None = None) -> str:
