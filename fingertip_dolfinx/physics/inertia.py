@@ -132,6 +132,7 @@ class Inertia:
         ksp.setOperators(M)
         ksp.setType("preonly")
         ksp.getPC().setType("lu")
+        ksp.getPC().setFactorSolverType("mumps")  # the package's direct solver, any ranks
         ksp.solve(b, self.a_n.x.petsc_vec)
         self.a_n.x.scatter_forward()
         for obj in (ksp, M, b):
