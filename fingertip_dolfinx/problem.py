@@ -73,7 +73,7 @@ from .physics.contact import (
     TipResolutionWarning,
     check_tip_resolution,
 )
-from .physics.friction import CoulombFriction, friction_coefficients
+from .physics.friction import CoulombFriction, check_dynamic_contact, friction_coefficients
 from .physics.inertia import Inertia
 from .physics.kinematics import deformation_gradient
 from .physics.tissues import REGIONS, WU2004, Tissues
@@ -161,6 +161,8 @@ class FingertipProblem(SteppableState):
         wait_for_compiles_elsewhere()
         #: μ per indenter (0: frictionless, the default; physics/friction.py).
         self.friction_coefficients = friction_coefficients(friction, len(indenters))
+        check_dynamic_contact(options.contact, options.contact_theta, options.inertia,
+                              self.friction_coefficients)
         self.fmesh, self.history, self.tissues, self.options = fmesh, history, tissues, options
         self.indenters = list(indenters)
         self.mesh = msh = fmesh.mesh

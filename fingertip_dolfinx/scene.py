@@ -29,6 +29,7 @@ from .geometry.section import Section, load_section
 from .harmonic_options import HarmonicOptions
 from .loading import KINDS, LoadHistory, TangentialPath, check_tangential_path, history_from_dict
 from .model import ModelOptions
+from .physics.friction import check_dynamic_contact
 from .physics.tissues import DEFAULT_SET, WU2004, Tissues, load_materials
 from .stepping.options import StepOptions, check_linear, check_petsc_options
 from .validation import check_keys, positive
@@ -251,6 +252,8 @@ class Scene:
                              f"Nitsche's θ = 0 (or the penalty), got θ = {m.contact_theta}.",
                              'use contact_theta = 0, or contact = "penalty" (the choice with '
                              "inertia).")
+        check_dynamic_contact(m.contact, m.contact_theta, m.inertia,
+                              [i.friction for i in self.indenters], f"{self.name}: ")
         if not self.outputs.times:
             self.outputs = dataclasses.replace(self.outputs, times=(self.history.end_time,))
         self._check_outputs()

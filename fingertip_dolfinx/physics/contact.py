@@ -32,7 +32,8 @@ feed the stiff modes of the contact's edges (flutter): on the coarse fingertip a
 unresolved oscillation of the contact zone grew until Newton failed with θ = 0, and decayed
 with the penalty (the runs: docs/benchmarks/measurements.md). It is the space discretisation,
 not the integrator: only enough numerical dissipation (ρ∞, or a longer Δt) hides it.
-`NitscheContact.conservative` says which laws are safe; the time stepper warns about the others.
+`NitscheContact.conservative` says which laws are safe; the time stepper warns about the others,
+and friction with inertia refuses them (friction.check_dynamic_contact).
 """
 
 from __future__ import annotations
@@ -116,6 +117,12 @@ class Obstacle:
         return x - sum(np.eye(x.shape[1])[k] * float(c.value) for k, c in shifts.items())
 
 
+def is_conservative(method: str, theta: int) -> bool:
+    """Whether the contact law's force is the gradient of a potential (penalty, or Nitsche with
+    θ = 1): then it cannot pump energy into a dynamic run (module docstring)."""
+    return method == "penalty" or theta == 1
+
+
 class NitscheContact:
     """The contact terms of the surface `ds` (e.g. `ds(PULP_SURFACE)`) against `obstacles`.
 
@@ -176,9 +183,8 @@ class NitscheContact:
 
     @property
     def conservative(self) -> bool:
-        """Whether the contact force is the gradient of a potential (penalty, or Nitsche with
-        θ = 1): then it cannot pump energy into a dynamic run (module docstring)."""
-        return self.method == "penalty" or self.theta == 1
+        """Whether the contact force is the gradient of a potential (`is_conservative`)."""
+        return is_conservative(self.method, self.theta)
 
     def _term(self, i: int, v) -> ufl.Form:
         """Indenter i's share of the residual, tested with v (an Argument or a Function)."""

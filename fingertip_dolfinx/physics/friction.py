@@ -52,7 +52,7 @@ from dolfinx import fem
 from mpi4py import MPI
 
 from ..errors import InputError
-from .contact import NitscheContact
+from .contact import NitscheContact, is_conservative
 
 #: |q| below this (MPa) counts as 0 in the projection's division (the stick branch is then
 #: taken anyway: only a zero ball r = 0, out of contact, reaches it, and gives f = 0).
@@ -78,6 +78,24 @@ def contact_state(pressure, margin) -> np.ndarray:
     """Codes per surface point: 2 stick where the stick margin μp − |q| > 0, else 1 slip
     where the pressure p > 0, else 0 free (a margin > 0 needs p > 0)."""
     return np.where(np.asarray(margin) > 0, 2, np.where(np.asarray(pressure) > 0, 1, 0))
+
+
+def check_dynamic_contact(method: str, theta: int, inertia: bool, mu, where: str = "") -> None:
+    """Refuse friction with inertia on a contact law whose force derives from no potential
+    (Nitsche's θ = 0: θ ≠ 0 is refused with friction anyway). Measured on the dragged block
+    (studies.problems.SlidingBlock, docs/benchmarks/friction.md): the energy balance did not
+    converge with Δt and its error grew at the smallest step, and with a velocity step the
+    contact's normal work reached −0.13 of the plate's: it fed energy in. Frictionless
+    dynamic runs keep the stepper's warning (stepping/stepper.py)."""
+    if not inertia or is_conservative(method, theta) or not any(m > 0 for m in mu):
+        return
+    raise InputError(
+        f"{where}model.contact", f"friction with inertia (model.inertia = true) needs a "
+        f"conservative contact law, got {method!r} (model.contact_theta = {theta}), whose "
+        "force derives from no potential: on the dragged block it fed energy into the run "
+        "(docs/benchmarks/friction.md, \"Friction with inertia\").",
+        'use model.contact = "penalty" (with its default model.contact_gamma0 = 10), or '
+        "model.inertia = false.")
 
 
 def project_on_ball(q, radius):

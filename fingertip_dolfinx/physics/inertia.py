@@ -108,6 +108,36 @@ class Inertia:
         v[:] = v + dt * ((1.0 - gamma) * a + gamma * a_new)
         a[:] = a_new
 
+    def consistent_acceleration(self, static: ufl.Form, bcs: Sequence) -> None:
+        """a_n ← the acceleration the state u_n is in: M a_n = −R_s(u_n), with R_s the residual
+        without the mass term (its loads as they are now) and a_n = 0 on the Dirichlet dofs.
+        A run starting from rest in equilibrium has a_n = 0 already; after a jump of a force
+        (a plate's velocity step makes the friction jump to μ p, slipping everywhere: the
+        surface's velocity is continuous, the plate's is not) the a_n the Newmark history
+        holds is the one before the jump, and the step that follows averages the two ends
+        (first order); with this one it is second order again (docs/benchmarks/friction.md).
+        """
+        from dolfinx.fem import petsc
+        from petsc4py import PETSc
+
+        V = self.u.function_space
+        w, da = ufl.TestFunction(V), ufl.TrialFunction(V)
+        M = petsc.assemble_matrix(fem.form(sum(rho * ufl.inner(da, w) * dx
+                                              for rho, dx in self.masses)), bcs=list(bcs))
+        M.assemble()
+        b = petsc.assemble_vector(fem.form(-static))
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        petsc.set_bc(b, list(bcs), alpha=0.0)
+        ksp = PETSc.KSP().create(V.mesh.comm)
+        ksp.setOperators(M)
+        ksp.setType("preonly")
+        ksp.getPC().setType("lu")
+        ksp.getPC().setFactorSolverType("mumps")  # the package's direct solver, any ranks
+        ksp.solve(b, self.a_n.x.petsc_vec)
+        self.a_n.x.scatter_forward()
+        for obj in (ksp, M, b):
+            obj.destroy()
+
     def arrays(self) -> dict[str, np.ndarray]:
         """The live arrays of the integrator's state, by checkpoint name."""
         return {"v_n": self.v_n.x.array, "a_n": self.a_n.x.array}

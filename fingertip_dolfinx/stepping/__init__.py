@@ -31,6 +31,7 @@ _API = {
                      "time_estimates", "verify_time"), "tolerance"),
     **dict.fromkeys(("SNES_REASONS", "distinct", "crosses", "compacted", "approach",
                      "overshoot_note", "newton_failure", "compaction_error", "cuts_error",
+                     "dynamic_friction_note",
                      "error_stall_error"), "diagnosis"),
     **dict.fromkeys(("LinearSolver", "DIRECT_OPTIONS", "KSP_RTOL", "iterative_options",
                      "rigid_body_modes", "split_index_sets", "pressure_modulus",

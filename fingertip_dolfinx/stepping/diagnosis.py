@@ -78,6 +78,23 @@ def overshoot_note(closed_iterates: int) -> str:
             "not compaction (smaller or more gradual steps help)")
 
 
+def dynamic_friction_note(problem) -> str:
+    """What the failure message adds for a problem with inertia and friction: a velocity jump
+    of an indenter's tangential path (the `slide` scene's onset) gives the nodes that stick in
+    the first step after it the velocity of Newmark's update, (γ/β) Δu/Δt, up to twice the
+    indenter's whatever Δt (measured: 140 mm/s under a bar at 80 mm/s), so the next step
+    starts with the skin overtaking the indenter; with the penalty at γ0 = 100 Newton did not
+    converge down to Δt = 20 µs, at γ0 = 10 it did, and at γ0 = 100 with ρ∞ = 0 (which takes
+    the highest modes' velocity out in one step; docs/benchmarks/friction.md)."""
+    if getattr(problem, "inertia", None) is None or getattr(problem, "friction", None) is None:
+        return ""
+    return (" With friction and inertia, a jump of an indenter's tangential velocity (a kink "
+            "of the path) sends the skin that sticks in the step after it at up to twice the "
+            "indenter's speed: use model.contact_gamma0 = 10 (the default; γ0 = 100 failed "
+            "there), steps.rho_inf = 0 (damps that overshoot within a step), or a tangential "
+            "path whose speed rises over several steps.")
+
+
 def newton_failure(reason: int, where: tuple[float, ...] | None = None) -> str:
     """Why an attempt failed: SNES's converged reason by name, and `where` (mm) the residual
     is largest if known."""
@@ -99,8 +116,9 @@ def compaction_error(problem, found, t: float, t_new: float, iterate: bool) -> C
 
 
 def cuts_error(t: float, t_new: float, loads: tuple[float, float], cuts: int, why: str,
-               closed_iterates: int) -> ConvergenceError:
-    """The stop after `cuts` failed attempts in a row from t, the last to t_new."""
+               closed_iterates: int, note: str = "") -> ConvergenceError:
+    """The stop after `cuts` failed attempts in a row from t, the last to t_new; `note` is
+    added to the fix (`dynamic_friction_note`)."""
     a, b = distinct(t, t_new)
     load_a, load_b = distinct(*loads)
     return ConvergenceError(
@@ -108,7 +126,7 @@ def cuts_error(t: float, t_new: float, loads: tuple[float, float], cuts: int, wh
         f"failed {cuts} times, the last with Δt = {t_new - t:.3g} s: {why}"
         f"{overshoot_note(closed_iterates)}. "
         f"Results up to t = {a} s are saved. Fix: lower the load or its rate, "
-        "refine the mesh where it fails, or allow smaller steps (dt_min, max_cuts).")
+        f"refine the mesh where it fails, or allow smaller steps (dt_min, max_cuts).{note}")
 
 
 def error_stall_error(t: float, t_new: float, err: float, dt_min: float) -> ConvergenceError:

@@ -87,6 +87,7 @@ from .diagnosis import (
     compaction_error,
     crosses,
     cuts_error,
+    dynamic_friction_note,
     error_stall_error,
     newton_failure,
 )
@@ -421,7 +422,8 @@ class TimeStepper:
         if step.cuts > self.options.max_cuts or step.dt < self.options.dt_min:
             problem.set_time(step.t)
             raise cuts_error(step.t, step.t_new, (line.history(step.t), line.history(step.t_new)),
-                             step.cuts, step.why, step.closed_iterates)
+                             step.cuts, step.why, step.closed_iterates,
+                             dynamic_friction_note(problem))
 
     def _compaction(self, line: _Timeline, step: _Step):
         """The compaction a failed attempt reached (admissibility.Compacted), or None; for a
