@@ -52,10 +52,34 @@ def test_the_pulp_reach_is_where_the_lowest_line_rises_by_the_depth():
         assert lo == -x and b * np.sqrt(1 - (x / a) ** 2) == pytest.approx(b - depth)
 
 
+@pytest.mark.parametrize("tilt", [20.0, 30.0, 40.0])
+def test_a_tilted_plane_reaches_the_cap_where_the_lowest_line_is_within_the_depth(tilt):
+    """A plane rising towards the tip by θ = `tilt` first touches the cap (a circle of radius b
+    in the (y, z) plane here: tip_length = b) where its slope is tan θ, at z = L + b sin θ;
+    pressed `depth` further along y it reaches the points of the circle within depth cos θ of
+    the tangent line, at angles θ ± arccos(1 − depth cos θ/b) from the bottom; below angle 0
+    the lowest line is the cylinder's, y = −b, which lies depth above the plane at
+    z = L + b sin θ − (b (1 − cos θ) + depth)/tan θ. Each end to the 10 µm sampling; far
+    from the cut z = 0 (the flat plane's reach starts there)."""
+    section, depth = load_scene("scan").section, 0.5
+    length, b = section.cylinder_length, section.outer.b
+    assert section.tip_length == b
+    lo, hi = pulp_reach(section, depth, "x", tilt)
+    theta = np.radians(tilt)
+    half = np.arccos(1 - depth * np.cos(theta) / b)
+    touch = length + b * np.sin(theta)
+    assert hi == pytest.approx(length + b * np.sin(theta + half), abs=0.011)
+    expected = (length + b * np.sin(theta - half) if theta > half
+                else touch - (b * (1 - np.cos(theta)) + depth) / np.tan(theta))
+    assert lo == pytest.approx(expected, abs=0.011) and lo > length - 1.0
+    assert pulp_reach(section, depth, "x")[0] == 0.0
+
+
 @pytest.mark.parametrize("override, where", [
-    ("indenters.0.ridges=8", "z = 3 to 15 mm"),  # too short: both ends inside the contact
-    ("indenters.0.centre_z=5.0", "z = 0.5 to 18.5 mm"),  # the proximal end enters at the end
-    ("protocol.tangential.values=[0.0, 0.0, 12.0]", "z = 3 to 18 mm"),  # scanned too far
+    ("indenters.0.ridges=5", "z = 14.8 to 17.6 mm"),  # too short: both ends inside the contact
+    ("indenters.0.centre_z=14.0", "z = 14 to 22.5 mm"),  # the proximal end enters at the start
+    ("protocol.tangential.values=[0.0, 0.0, 12.0]", "z = 14.8 to 20.5 mm"),  # scanned too far
+    ("indenters.0.tilt=0.0", "reaches z = 0 to 16.6 mm"),  # flat: the pulp down to the cut
 ])
 def test_a_scan_running_off_the_gratings_end_is_refused(override, where):
     with pytest.raises(InputError, match="the grating's end would pass through the contact") as e:
