@@ -497,6 +497,8 @@ def test_a_tilted_grating_is_the_flat_one_rotated_and_tilt_zero_is_the_flat_one(
     assert np.allclose(n_t, n @ rotation.T, rtol=0, atol=1e-13)
     assert rotation @ [0, 0, 1.0] == pytest.approx(TILTED.z_direction())  # moves along it
     assert flat.z_direction() is None
+    with pytest.raises(InputError, match="grating.tilt: a tilted grating moved along its plane"):
+        TILTED.shifted(0.5)
 
 
 def test_ufl_and_numpy_agree_on_a_tilted_floored_grating():

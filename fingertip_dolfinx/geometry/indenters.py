@@ -193,7 +193,13 @@ class _Prism(Indenter):
 
     def shifted(self, distance: float) -> _Prism:
         """The same prism moved `distance` mm across its edge: along x for a "z" prism, along z
-        for an "x" one (how a scan moves a grating over the skin)."""
+        for an "x" one (how a scan moves a grating over the skin). A tilted grating moves
+        along its own plane, which raises its tip too: not a change of its centres."""
+        if getattr(self, "tilt", 0.0) != 0:
+            raise InputError(f"{self.shape}.tilt", "a tilted grating moved along its plane "
+                             "also moves its tip height (y_tip), which it does not hold.",
+                             "move it by the scene's tangential path (the contact's z_tip), "
+                             "or shift the untilted grating.")
         if self.axis == "z":
             return dataclasses.replace(self, centre_x=self.centre_x + distance)
         return dataclasses.replace(self, centre_z=self.centre_z + distance)
