@@ -385,6 +385,11 @@ class Grating(_Prism):
         default): no floor.
     axis : str, optional
         3D: the orientation, ``"z"`` (ridges along the finger) or ``"x"`` (across it).
+    tilt : float, optional
+        3D, ``"x"`` only: the plane's angle (degrees, 0 to 60) to the finger's axis, rising
+        towards the tip, about the line (y_tip, centre_z); the distance is the flat grating's
+        in the rotated frame (exact: a rigid rotation), and a move along z runs along the
+        plane (`z_direction`). 0: flat.
     """
 
     width: float  # mm: the top of each ridge
@@ -392,7 +397,9 @@ class Grating(_Prism):
     ridges: int  # how many
     corner_radius: float  # mm: the rounded top corners
     depth: float = math.inf  # mm: ridge top to groove floor (inf: the flanks run down)
-    #: degrees: an "x" grating's plane rotated about x, rising towards the tip (+z); 0: flat
+    #: degrees, 0 to 60: an "x" grating's plane rotated about x about the line (y_tip,
+    #: centre_z), rising towards the tip (+z), as a finger meets a surface at a contact angle;
+    #: a tangential move along z then runs along the plane. 0 (the default): flat.
     tilt: float = 0.0
     shape: ClassVar[str] = "grating"
     #: Every number of the grating (and its orientation) is an `_Ops.number`: gratings with
