@@ -5,7 +5,9 @@ class's population rate; prints the measured numbers: the modulation of the forc
 rates at the ridge frequency speed/period over the last two periods, the forces' repetition
 from one period to the next, and each class's vector strength of its spikes' ridge phases.
 
-Run: `fingertip run scan --out DIR`, then `python benchmarks/scan_figure.py DIR OUT.png`.
+Forces are taken in the grating's own frame (normal n and direction of travel t; a tilted
+grating's plane is rotated about x). Run: `fingertip run scan --out DIR`, then
+`python benchmarks/scan_figure.py DIR OUT.png`.
 """
 
 import sys
@@ -45,21 +47,53 @@ def window(scene, h: dict) -> tuple[float, float, int]:
     return end - periods / f, end, periods
 
 
-def ridge_phases(scene, times, z_sites) -> np.ndarray:
-    """The phase (rad) of each event in the ridges' passage over its site: 0 when a ridge's
-    centre line is over the site's reference z, 2π a period of travel later."""
+def pivot_height(scene) -> float:
+    """y_tip of a tilted grating pressed home: its plane, through (y_tip, centre_z), tangent
+    to the cap (a circle of radius b = tip_length in the (y, z) plane) at
+    (−b cos θ, L + b sin θ), then pressed the protocol's depth along y."""
+    grating, section = scene.indenters[0], scene.section
+    theta, b = np.radians(grating.tilt), section.outer.b
+    touch = -b * np.cos(theta) - (section.cylinder_length + b * np.sin(theta)
+                                  - grating.centre_z) * np.tan(theta)
+    return touch + scene.history.deepest
+
+
+def along_plane(scene, y, z) -> np.ndarray:
+    """A point's distance along the grating's plane from the middle ridge's line (y_tip,
+    centre_z) at the start: (z − centre_z) cos θ + (y − y_tip) sin θ (flat: z − centre_z)."""
     grating = scene.indenters[0]
+    theta = np.radians(grating.tilt)
+    return ((np.asarray(z) - grating.centre_z) * np.cos(theta)
+            + (np.asarray(y) - pivot_height(scene)) * np.sin(theta))
+
+
+def ridge_phases(scene, times, along) -> np.ndarray:
+    """The phase (rad) of each event in the ridges' passage over its site (at `along` on the
+    plane, `along_plane`): 0 when a ridge's centre line is over it, 2π a period later."""
     travel = np.array([scene.history.tangential_at(t) for t in times])
-    return 2 * np.pi * (travel - (np.asarray(z_sites) - grating.centre_z)) / grating.period
+    return 2 * np.pi * (travel - np.asarray(along)) / scene.indenters[0].period
+
+
+def in_plane_frame(h: dict, tilt: float) -> dict:
+    """history.csv's forces in the grating's frame, rotated by the tilt θ about x: along its
+    normal n = (0, cos θ, −sin θ) and its direction of travel t = (0, sin θ, cos θ), under
+    the flat grating's names (force_N: F_n, tangential_z_force_N: F_t, ...): flat, the same."""
+    c, s = np.cos(np.radians(tilt)), np.sin(np.radians(tilt))
+    out = dict(h)
+    for normal, along in (("force_N", "tangential_z_force_N"),
+                          ("pressure_normal_force_N", "pressure_tangential_z_force_N")):
+        out[normal] = h[normal] * c - h[along] * s
+        out[along] = h[normal] * s + h[along] * c
+    return out
 
 
 def friction_share(h: dict, mu: float) -> np.ndarray:
-    """(F_z − F_p,z)/(μ F_p,y): the friction's share of the force along the scan over μ times
-    the pressure's normal force. The ridges run across the finger, so every normal n lies in
-    the (y, z) plane (F_p,x = 0); in gross slip along the profile the friction traction is μp
-    along the tangent R n, the same way everywhere, so F_f = μ R F_p: F_f,z = μ F_p,y and
-    F_f,y = −μ F_p,z, whence F_p,y = F_y + μ F_p,z (history.csv has F_y = F_p,y + F_f,y, F_z
-    and F_p,z). The ratio is 1 in gross slip, below 1 where some of the contact sticks."""
+    """(F_t − F_p,t)/(μ F_p,n) in the grating's frame (`in_plane_frame`): the friction's share
+    of the force along the scan over μ times the pressure's normal force. The ridges run
+    across the finger, so every normal n lies in the (y, z) plane (F_p,x = 0); in gross slip
+    along the profile the friction traction is μp along the tangent R n, the same way
+    everywhere, so F_f = μ R F_p: F_f,t = μ F_p,n and F_f,n = −μ F_p,t, whence
+    F_p,n = F_n + μ F_p,t. The ratio is 1 in gross slip, below 1 where some of it sticks."""
     pz = h["pressure_tangential_z_force_N"]
     return (h["tangential_z_force_N"] - pz) / (mu * (h["force_N"] + mu * pz))
 
@@ -89,7 +123,8 @@ def spike_measures(scene, h: dict, afferents: dict, spikes: dict) -> dict:
     strength of the ridge phases, the population rate's harmonic at f over its mean."""
     start, _, f = scan_setup(scene)
     t0, end, periods = window(scene, h)
-    z_of = dict(zip(afferents["afferent"], afferents["z_mm"]))
+    along_of = dict(zip(afferents["afferent"],
+                        along_plane(scene, afferents["y_mm"], afferents["z_mm"])))
     strip = set(afferents["afferent"][np.abs(afferents["x_mm"]) < STRIP_X])
     out = {}
     for name in CLASSES:
@@ -100,8 +135,8 @@ def spike_measures(scene, h: dict, afferents: dict, spikes: dict) -> dict:
                                                                    list(strip))))
         entry = {"afferents": n_aff, "spikes": int(rows.sum())}
         if rows.sum() > 0:
-            z = [z_of[a] for a in spikes["afferent"][rows]]
-            entry["R"] = vector_strength(ridge_phases(scene, times, z))
+            along = [along_of[a] for a in spikes["afferent"][rows]]
+            entry["R"] = vector_strength(ridge_phases(scene, times, along))
             edges = np.linspace(t0, end, 6 * periods + 1)  # 6 bins a period
             rate = np.histogram(times, edges)[0] / np.diff(edges) / n_aff
             mid = 0.5 * (edges[1:] + edges[:-1])
@@ -116,7 +151,7 @@ def forces_panel(ax, scene, h: dict, m: dict) -> None:
     t = 1e3 * h["time_s"]
     ax.plot(t, 1e3 * h["force_N"], "k-", label="normal force $F_n$ (half model)")
     ax.plot(t, 1e3 * h["tangential_z_force_N"], "-", color="tab:red",
-            label="tangential force $F_z$")
+            label="tangential force $F_t$")
     ax.plot(t, 1e3 * h["pressure_tangential_z_force_N"], ":", color="tab:purple",
             label="its pressure share (ridges' flanks)")
     ax.set_ylabel("force (mN)")
@@ -127,15 +162,16 @@ def forces_panel(ax, scene, h: dict, m: dict) -> None:
     ratio = ax.twinx()
     ratio.plot(t, m["ft_mu_fn"], "--", color="tab:red", lw=0.9)
     ratio.plot(t, m["coulomb"], "--", color="tab:green", lw=0.9)
-    ratio.set_ylabel(r"$|F_t|/(\mu F_n)$ (red), $F_{f,z}/(\mu F_{p,y})$ (green)", fontsize=8)
+    ratio.set_ylabel(r"$|F_t|/(\mu F_n)$ (red), $F_{f,t}/(\mu F_{p,n})$ (green)", fontsize=8)
     ratio.set_ylim(0, 1.6)
 
 
 def raster_panel(ax, scene, afferents: dict, spikes: dict) -> None:
-    """Each spike at (time, its site's z) for the afferents under the strip, with the
-    ridges' centre lines z = centre_z + s(t) + kP sweeping up."""
+    """Each spike at (time, its site's place along the grating's plane, `along_plane`) for
+    the afferents under the strip, with the ridges' centre lines s(t) + kP sweeping up."""
     grating, path = scene.indenters[0], scene.history
-    z_of = dict(zip(afferents["afferent"], afferents["z_mm"]))
+    z_of = dict(zip(afferents["afferent"],
+                    along_plane(scene, afferents["y_mm"], afferents["z_mm"])))
     x_of = dict(zip(afferents["afferent"], afferents["x_mm"]))
     for name, colour in CLASSES.items():
         rows = (spikes["class"] == name) & np.array(
@@ -144,10 +180,11 @@ def raster_panel(ax, scene, afferents: dict, spikes: dict) -> None:
                 "|", ms=4, color=colour, label=name)
     t = np.linspace(0, path.end_time, 400)
     s = np.array([path.tangential_at(v) for v in t])
-    for c in grating.centre_z + grating.centres():
+    for c in grating.centres():
         ax.plot(1e3 * t, c + s, "-", color="0.75", lw=0.6, zorder=0)
-    ax.set_ylim(0, 18)
-    ax.set_ylabel(f"site z (mm), |x| < {STRIP_X:g} mm")
+    fired = [z_of[a] for a in spikes["afferent"] if abs(x_of[a]) < STRIP_X]
+    ax.set_ylim(min(fired) - 1.0, max(fired) + 1.0)
+    ax.set_ylabel(f"site along the grating (mm), |x| < {STRIP_X:g} mm")
     ax.legend(fontsize=7, loc="upper left", ncol=3, title="spikes; grey: ridge centres",
               title_fontsize=7)
 
@@ -174,16 +211,16 @@ def rates_panel(ax, scene, h: dict, afferents: dict, spikes: dict) -> None:
 
 def main(run: Path, out: Path) -> None:
     scene = load_scene("scan")
-    h = read_csv(run / "history.csv")
+    g = scene.indenters[0]
+    h = in_plane_frame(read_csv(run / "history.csv"), g.tilt)  # F_n, F_t: the grating's
     afferents, spikes = Result(run).afferents, Result(run).spikes
     m = force_measures(scene, h)
     fig, axes = plt.subplots(3, 1, figsize=(7.0, 9.0), sharex=True, constrained_layout=True,
                              height_ratios=(3, 4, 3))
     forces_panel(axes[0], scene, h, m)
-    g = scene.indenters[0]
-    axes[0].set_title(f"scan: grating (ridges {g.width:g} mm, period {g.period:g} mm) pressed "
-                      f"0.5 mm, scanned along the finger at 80 mm/s; μ = {g.friction:g}",
-                      fontsize=8)
+    axes[0].set_title(f"scan: grating (ridges {g.width:g} mm, period {g.period:g} mm) tilted "
+                      f"{g.tilt:g}°, pressed 0.5 mm, scanned along its plane at 80 mm/s; "
+                      f"μ = {g.friction:g}", fontsize=8)
     raster_panel(axes[1], scene, afferents, spikes)
     rates_panel(axes[2], scene, h, afferents, spikes)
     axes[2].set_xlim(0, 1e3 * h["time_s"][-1])  # a stopped run: its own end
@@ -195,7 +232,7 @@ def report(h: dict, m: dict, s: dict) -> None:
     scanning = h["tangential_z_displacement_mm"] > 0
     c = m["coulomb"]
     w = m["window"]
-    print(f"max F_fz/(mu F_py) = {c.max():.12g}; last two periods: {c[w].min():.12g}"
+    print(f"max F_ft/(mu F_pn) = {c.max():.12g}; last two periods: {c[w].min():.12g}"
           f" .. {c[w].max():.12g}")
     r = m["ft_mu_fn"][scanning]
     print(f"|Ft|/(mu Fn) over the scan: {r.min():.3g} .. {r.max():.3g}")

@@ -21,6 +21,8 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from .datafiles import builtin_dir, find, read_toml
 from .errors import InputError
 from .geometry.fingertip3d import Fingertip3D, load_fingertip3d, section_dimension
@@ -320,17 +322,32 @@ _NUMERICAL = ("section.mesh", "steps", "solver", "output", "accuracy")
 _ABBREVIATIONS = {"radius": "r", "width": "w", "centre_x": "x", "centre_z": "z"}
 
 
-def pulp_reach(section, depth: float, axis: str) -> tuple[float, float]:
+def pulp_reach(section, depth: float, axis: str, tilt: float = 0.0) -> tuple[float, float]:
     """The strip of pulp an indentation `depth` mm after first touch can reach: where the
     undeformed pulp's lowest line lies within `depth` of its lowest point (the contact spreads
     a little further, by the skin's bulge). Across the finger (`axis` "z": the range of x) the
     outer ellipse's |x| <= a sqrt(1 − (1 − depth/b)²); along it ("x": the range of z, 3D) from
     the cut z = 0, where the finger continues, to the tip cap's z = cylinder_length +
-    tip_length × the same root (the cap's cross-sections are the ellipse scaled down)."""
+    tip_length × the same root (the cap's cross-sections are the ellipse scaled down). A plane
+    tilted by `tilt` degrees (rising towards the tip, "x" only) reaches where the lowest line
+    lies within `depth` (along y) of the plane through its first touch."""
     root = math.sqrt(1.0 - max(1.0 - depth / section.outer.b, 0.0) ** 2)
+    if axis == "x" and tilt != 0:
+        return _tilted_reach(section, depth, tilt)
     if axis == "x":
         return 0.0, section.cylinder_length + section.tip_length * root
     return -section.outer.a * root, section.outer.a * root
+
+
+def _tilted_reach(section, depth: float, tilt: float) -> tuple[float, float]:
+    """`pulp_reach` along z for a plane tilted by `tilt` degrees, sampled every 10 µm."""
+    length, cap, b = section.cylinder_length, section.tip_length, section.outer.b
+    z = np.linspace(0.0, length + cap, int((length + cap) / 0.01) + 1)
+    along_cap = np.clip((z - length) / cap, 0.0, 1.0)
+    lowest = -b * np.sqrt(1.0 - along_cap**2)  # the pulp's lowest line, cylinder then cap
+    above = lowest - z * math.tan(math.radians(tilt))  # its height over the tilted plane
+    reached = z[above <= above.min() + depth]
+    return float(reached.min()), float(reached.max())
 
 
 def check_scan_coverage(indenter: Indenter, history, section, where: str) -> None:
@@ -338,7 +355,8 @@ def check_scan_coverage(indenter: Indenter, history, section, where: str) -> Non
     lie under the whole reachable strip (`pulp_reach`) at every point of its path: else its
     end (an outermost ridge's flank, running down without end) passes through the contact,
     and the forces and spikes measure that end, not the texture. A bar (1 ridge) or a bar
-    with a gap (2) is its own end: not checked."""
+    with a gap (2) is its own end: not checked. A tilted grating's ridges and path lie along
+    its plane: their z is centre_z + (distance along the plane) × cos(tilt)."""
     if not (isinstance(indenter, Grating) and indenter.ridges > 2
             and hasattr(history, "tangential_at")):
         return
@@ -347,9 +365,10 @@ def check_scan_coverage(indenter: Indenter, history, section, where: str) -> Non
     if along == 0:
         return
     s = [along * v for v in history.tangential.values]
-    lo, hi = pulp_reach(section, history.deepest, indenter.axis)
+    lo, hi = pulp_reach(section, history.deepest, indenter.axis, indenter.tilt)
     last = float(indenter.centres()[-1])  # the outermost ridges' centres: centre ± last
-    near, far = centre + max(s) - last, centre + min(s) + last
+    cos = math.cos(math.radians(indenter.tilt))
+    near, far = centre + (max(s) - last) * cos, centre + (min(s) + last) * cos
     if near > lo or far < hi:
         coordinate = "z" if indenter.axis == "x" else "x"
         raise InputError(

@@ -454,3 +454,69 @@ def test_bad_grating_keys_are_named(data, message):
 def test_ufl_and_numpy_agree_on_a_floored_grating_across_the_finger():
     test_ufl_and_numpy_agree_in_3d(Grating(width=1.0, period=2.0, ridges=3, corner_radius=0.1,
                                            depth=0.4, axis="x", centre_z=0.3))
+
+
+# ---- a tilted grating (a finger exploring a surface at a contact angle) ---------------------
+
+TILTED = dataclasses.replace(GRATING_3D, axis="x", tilt=30.0)
+
+
+def test_a_tilted_grating_has_its_exact_distance_at_chosen_points():
+    """Tilted by θ = 30° about x (rising towards +z) about the line (y_tip, centre_z): a point
+    at h along the plane (h = 0: the middle ridge's centre line, the grating's middle) and v
+    above it lies at (y, z) = (y_tip + h sin θ + v cos θ, centre_z + h cos θ − v sin θ). Above
+    a ridge's top φ = v and n is the plane's normal (0, cos θ, −sin θ); in a groove's middle
+    (h = 1) below the corners' centres φ = 0.5 (the flank), n along the plane (∓ its
+    direction (0, sin θ, cos θ)); beside and above a corner's centre, the distance to it."""
+    c, s = math.cos(math.radians(30.0)), math.sin(math.radians(30.0))
+    hv = np.array([[0.0, 0.3], [2.2, 0.05], [1.0, -0.6], [0.6, 0.1], [-4.0, -0.01]])
+    x = np.array([0.7, -3.0, 0.0, 11.0, 2.0])  # any x: a prism along x
+    points = np.column_stack((x, Y_TIP + hv[:, 0] * s + hv[:, 1] * c,
+                              9.0 + hv[:, 0] * c - hv[:, 1] * s))
+    phi, n = TILTED.signed_distance_np(points, Y_TIP)
+    corner = math.hypot(0.2, 0.2) - 0.1
+    assert phi == pytest.approx([0.3, 0.05, 0.5, corner, -0.01], abs=1e-14)
+    assert n[0] == pytest.approx([0, c, -s]) and n[4] == pytest.approx([0, c, -s])
+    assert np.abs(n[2]) == pytest.approx([0, s, c])  # the flank's normal lies along the plane
+    assert n[3] == pytest.approx(math.sqrt(0.5) * np.array([0, s + c, c - s]))
+
+
+def test_a_tilted_grating_is_the_flat_one_rotated_and_tilt_zero_is_the_flat_one():
+    """φ is invariant under the rotation: φ_tilted(R p) = φ_flat(p) about the pivot line, and
+    n_tilted = R n_flat; tilt = 0 (the default) is the untilted grating, value for value."""
+    flat = dataclasses.replace(TILTED, tilt=0.0)
+    assert flat == dataclasses.replace(GRATING_3D, axis="x")
+    points = random_points_3d(500, seed=7) * [3.0, 1.0, 3.0] + [0.0, 0.0, 9.0]
+    angle = math.radians(TILTED.tilt)
+    rotation = np.array([[1.0, 0.0, 0.0], [0.0, math.cos(angle), math.sin(angle)],
+                         [0.0, -math.sin(angle), math.cos(angle)]])  # (y, z) by +θ about x
+    pivot = np.array([0.0, Y_TIP, 9.0])
+    phi, n = flat.signed_distance_np(points, Y_TIP)
+    phi_t, n_t = TILTED.signed_distance_np((points - pivot) @ rotation.T + pivot, Y_TIP)
+    assert np.allclose(phi_t, phi, rtol=0, atol=1e-13)
+    assert np.allclose(n_t, n @ rotation.T, rtol=0, atol=1e-13)
+    assert rotation @ [0, 0, 1.0] == pytest.approx(TILTED.z_direction())  # moves along it
+    assert flat.z_direction() is None
+    with pytest.raises(InputError, match="grating.tilt: a tilted grating moved along its plane"):
+        TILTED.shifted(0.5)
+
+
+def test_ufl_and_numpy_agree_on_a_tilted_floored_grating():
+    test_ufl_and_numpy_agree_in_3d(dataclasses.replace(TILTED, depth=0.4, centre_z=0.3))
+
+
+@pytest.mark.parametrize("data, message", [
+    ({"tilt": 20.0}, "grating.tilt: 20.0° needs ridges across the finger"),
+    ({"tilt": 20.0, "axis": "x", "centre_z": 1.0, "friction": 0.5}, None),
+    ({"tilt": -10.0, "axis": "x"}, "grating.tilt: must be between 0 and 60 degrees"),
+    ({"tilt": 75.0, "axis": "x"}, "grating.tilt: must be between 0 and 60 degrees"),
+    ({"tilt": float("inf"), "axis": "x"}, "grating.tilt: must be finite"),
+])
+def test_bad_tilts_are_named(data, message):
+    table = {"shape": "grating", "width": 1.0, "period": 2.0, "ridges": 3,
+             "corner_radius": 0.1, **data}
+    if message is None:
+        assert make_indenter(table).tilt == 20.0
+        return
+    with pytest.raises(InputError, match=message):
+        make_indenter(table, where="test.toml")

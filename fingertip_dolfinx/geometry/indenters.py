@@ -65,9 +65,12 @@ def _ufl_ops(x) -> _Ops:
 #: Prism directions: "z" along the finger (the plane-strain line load), "x" across it.
 AXES = ("z", "x")
 #: Keys that have a default (every other size must be given).
-OPTIONAL_KEYS = ("centre_x", "centre_z", "axis", "friction", "depth")
-#: Keys that are not sizes: any finite number (centres), or >= 0 (friction).
-_NOT_SIZES = ("centre_x", "centre_z", "friction")
+OPTIONAL_KEYS = ("centre_x", "centre_z", "axis", "friction", "depth", "tilt")
+#: Keys that are not sizes: any finite number (centres, a tilt), or >= 0 (friction).
+_NOT_SIZES = ("centre_x", "centre_z", "friction", "tilt")
+#: The largest tilt of a grating's plane (degrees): steeper, the plane would face the finger
+#: edge-on (at 90° its ridges would run along the press direction).
+MAX_TILT = 60.0
 #: Sizes that may be infinite (a grating's groove depth: inf, no floor).
 _UNBOUNDED = ("depth",)
 
@@ -104,6 +107,11 @@ class Indenter:
     def tip_curvature_radius(self) -> float:
         """Radius of curvature at the tip (mm): what the surface mesh must resolve."""
         return math.inf  # flat
+
+    def z_direction(self) -> tuple[float, float, float] | None:
+        """The unit vector along which a tangential move "along z" carries the indenter
+        (3D), if it is not z itself (a tilted grating moves along its own plane); None: z."""
+        return None
 
     def tip_xs(self) -> tuple[float, ...]:
         """x of the tops (mm) whose height is y_tip: where a tip could pierce the body."""
@@ -185,7 +193,13 @@ class _Prism(Indenter):
 
     def shifted(self, distance: float) -> _Prism:
         """The same prism moved `distance` mm across its edge: along x for a "z" prism, along z
-        for an "x" one (how a scan moves a grating over the skin)."""
+        for an "x" one (how a scan moves a grating over the skin). A tilted grating moves
+        along its own plane, which raises its tip too: not a change of its centres."""
+        if getattr(self, "tilt", 0.0) != 0:
+            raise InputError(f"{self.shape}.tilt", "a tilted grating moved along its plane "
+                             "also moves its tip height (y_tip), which it does not hold.",
+                             "move it by the scene's tangential path (the contact's z_tip), "
+                             "or shift the untilted grating.")
         if self.axis == "z":
             return dataclasses.replace(self, centre_x=self.centre_x + distance)
         return dataclasses.replace(self, centre_z=self.centre_z + distance)
@@ -371,6 +385,11 @@ class Grating(_Prism):
         default): no floor.
     axis : str, optional
         3D: the orientation, ``"z"`` (ridges along the finger) or ``"x"`` (across it).
+    tilt : float, optional
+        3D, ``"x"`` only: the plane's angle (degrees, 0 to 60) to the finger's axis, rising
+        towards the tip, about the line (y_tip, centre_z); the distance is the flat grating's
+        in the rotated frame (exact: a rigid rotation), and a move along z runs along the
+        plane (`z_direction`). 0: flat.
     """
 
     width: float  # mm: the top of each ridge
@@ -378,6 +397,10 @@ class Grating(_Prism):
     ridges: int  # how many
     corner_radius: float  # mm: the rounded top corners
     depth: float = math.inf  # mm: ridge top to groove floor (inf: the flanks run down)
+    #: degrees, 0 to 60: an "x" grating's plane rotated about x about the line (y_tip,
+    #: centre_z), rising towards the tip (+z), as a finger meets a surface at a contact angle;
+    #: a tangential move along z then runs along the plane. 0 (the default): flat.
+    tilt: float = 0.0
     shape: ClassVar[str] = "grating"
     #: Every number of the grating (and its orientation) is an `_Ops.number`: gratings with
     #: the same ridge count and floor or none share one compiled contact form (acuity study).
@@ -401,6 +424,42 @@ class Grating(_Prism):
                              f"radius {self.corner_radius} mm: the floor would cut the ridges' "
                              "rounded corners.", "use depth > corner_radius, or leave depth "
                              "out (grooves without a floor).")
+        self._check_tilt()
+
+    def _check_tilt(self):
+        if self.tilt != 0 and self.axis != "x":
+            raise InputError("grating.tilt", f"{self.tilt}° needs ridges across the finger "
+                             "(axis = 'x'): the plane is rotated about x.",
+                             "set axis = 'x', or leave tilt out (0).")
+        if not 0 <= self.tilt <= MAX_TILT:
+            raise InputError("grating.tilt", f"must be between 0 and {MAX_TILT:g} degrees, got "
+                             f"{self.tilt}.", "give the angle between the grating's plane and "
+                             "the finger's axis, e.g. 20 (a finger exploring a surface).")
+
+    def _tilt_frame(self) -> tuple[float, float]:
+        """(cos, sin) of the tilt: the plane's direction along +z is (0, sin, cos), its
+        normal towards the finger (0, cos, −sin)."""
+        angle = math.radians(self.tilt)
+        return math.cos(angle), math.sin(angle)
+
+    def z_direction(self):
+        if self.tilt == 0:
+            return None
+        c, s = self._tilt_frame()
+        return (0.0, s, c)
+
+    def _field(self, coords, y_tip, ops):
+        """A tilted grating: the profile in the plane's own frame about the line (y_tip,
+        centre_z) (h along the plane, v along its normal), the normal rotated back; a rigid
+        rotation keeps the distance exact. Untilted: the prism's field, unchanged."""
+        if self.tilt == 0 or len(coords) != 3:
+            return super()._field(coords, y_tip, ops)
+        x, y, z = coords
+        c, s = self._tilt_frame()
+        dz, dy = z - ops.number(self.centre_z), y - y_tip
+        h, v = dz * c + dy * s, dy * c - dz * s
+        phi, na, nv = self._distance(h + ops.number(self.centre_x), v + y_tip, y_tip, ops)
+        return phi, [0.0 * x, na * s + nv * c, na * c - nv * s]
 
     def tip_curvature_radius(self) -> float:
         return self.corner_radius

@@ -101,20 +101,29 @@ class Obstacle:
         """Axis -> the Constant moving the indenter along it (x: 0, z: 2), those it has."""
         return {k: c for k, c in ((0, self.x_tip), (2, self.z_tip)) if c is not None and k < d}
 
+    def offset(self, d: int, value=lambda c: c) -> list:
+        """The indenter's tangential displacement as d components (Constants, or what
+        `value` makes of them; 0.0 along an axis it never moves along). A move along z
+        carries it along `indenter.z_direction()` (a tilted grating: along its own plane)."""
+        shifts = self._shifts(d)
+        offset = [value(shifts[k]) if k in shifts else 0.0 for k in range(d)]
+        direction = self.indenter.z_direction()
+        if 2 in shifts and direction is not None:
+            offset[1:] = [value(shifts[2]) * direction[k] for k in (1, 2)]
+        return offset
+
     def relative(self, x):
-        """The point x (UFL vector) in the indenter's frame: shifted back by x_tip along x and
-        z_tip along z."""
-        shifts = self._shifts(x.ufl_shape[0])
-        if not shifts:
+        """The point x (UFL vector) in the indenter's frame: shifted back by its tangential
+        displacement (`offset`)."""
+        if not self._shifts(x.ufl_shape[0]):
             return x
-        return x - ufl.as_vector([shifts.get(k, 0.0) for k in range(x.ufl_shape[0])])
+        return x - ufl.as_vector(self.offset(x.ufl_shape[0]))
 
     def relative_np(self, x: np.ndarray) -> np.ndarray:
         """`relative` for points (m, d) in numpy."""
-        shifts = self._shifts(x.shape[1])
-        if not shifts:
+        if not self._shifts(x.shape[1]):
             return x
-        return x - sum(np.eye(x.shape[1])[k] * float(c.value) for k, c in shifts.items())
+        return x - np.array(self.offset(x.shape[1], lambda c: float(c.value)))
 
 
 def is_conservative(method: str, theta: int) -> bool:

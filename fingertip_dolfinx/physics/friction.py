@@ -181,8 +181,8 @@ class CoulombFriction:
         slip `elastic_slip`; None for Nitsche's law)."""
         contact, obstacle = self.contact, self.contact.obstacles[i]
         n = contact._normals[i]
-        moved = ufl.as_vector([_coordinate(obstacle, k) - previous[i][k]
-                               for k in range(gdim)])
+        moved = ufl.as_vector([p - previous[i][k]
+                               for k, p in enumerate(_position(obstacle, gdim))])
         tangential = ufl.Identity(gdim) - ufl.outer(n, n)
         slip = tangential * (contact.u - u_prev - moved)
         # the penalty law has no traction estimate (t_n = 0 in the contact): the traction
@@ -226,8 +226,7 @@ class CoulombFriction:
             self.elastic_slip.x.scatter_forward()
         self.u_prev.x.array[:] = self.contact.u.x.array
         for previous, obstacle in zip(self._previous, self.contact.obstacles):
-            previous.value[:] = [_value(_coordinate(obstacle, k))
-                                 for k in range(len(previous.value))]
+            previous.value[:] = _position(obstacle, len(previous.value), _value)
 
     @cached_property
     def _slip_expression(self) -> fem.Expression:
@@ -319,11 +318,14 @@ class CoulombFriction:
         return comm.allreduce(local.T.copy(), op=MPI.SUM)
 
 
-def _coordinate(obstacle, k: int):
-    """The indenter's position along x (k = 0: x_tip), y (k = 1: y_tip) or z (k = 2: z_tip);
-    0.0 along an axis it never moves along."""
-    constant = (obstacle.x_tip, obstacle.y_tip, obstacle.z_tip)[k]
-    return 0.0 if constant is None else constant
+def _position(obstacle, gdim: int, value=lambda c: c) -> list:
+    """The indenter's position (x, y[, z]): its tangential offset (`Obstacle.offset`: x_tip,
+    z_tip, or along a tilted grating's plane) plus y_tip along y, as Constants (or what
+    `value` makes of them); 0.0 along an axis it never moves along."""
+    position = obstacle.offset(gdim, value)
+    y = value(obstacle.y_tip)
+    position[1] = y if isinstance(position[1], float) and position[1] == 0.0 else y + position[1]
+    return position
 
 
 def _value(constant) -> float:
