@@ -22,24 +22,23 @@ import matplotlib.pyplot as plt  # noqa: E402
 from fingertip_dolfinx.outputs import read_csv  # noqa: E402
 from fingertip_dolfinx.result import Result  # noqa: E402
 from fingertip_dolfinx.scene import load_scene  # noqa: E402
+from fingertip_dolfinx.studies.scan import (  # noqa: E402
+    along_plane,
+    friction_share,
+    in_plane_frame,
+    ridge_frequency,
+    ridge_phases,
+)
 from fingertip_dolfinx.studies.signals import steady_state, vector_strength  # noqa: E402
 
 CLASSES = {"SA1": "tab:blue", "RA": "tab:orange", "PC": "tab:green"}
 STRIP_X = 2.0  # mm: afferents under the middle of the contact strip, |x| < this
 
 
-def scan_setup(scene) -> tuple[float, float, float]:
-    """(start of the scan (s), speed (mm/s), ridge frequency speed/period (Hz))."""
-    path, grating = scene.history, scene.indenters[0]
-    start, end = path.normal.ramp_time, path.end_time
-    speed = (path.tangential_at(end) - path.tangential_at(start)) / (end - start)
-    return start, speed, speed / grating.period
-
-
 def window(scene, h: dict) -> tuple[float, float, int]:
     """(start, end (s), whole periods) of the analysis: the run's last two periods of scan, or
     its last one when it was stopped before two (its end is the history's last step)."""
-    _, _, f = scan_setup(scene)
+    _, _, f = ridge_frequency(scene)
     end = h["time_s"][-1]
     periods = min(2, int(scene.history.tangential_at(end) // scene.indenters[0].period))
     if periods < 1:
@@ -47,60 +46,9 @@ def window(scene, h: dict) -> tuple[float, float, int]:
     return end - periods / f, end, periods
 
 
-def pivot_height(scene) -> float:
-    """y_tip of a tilted grating pressed home: its plane, through (y_tip, centre_z), tangent
-    to the cap (a circle of radius b = tip_length in the (y, z) plane) at
-    (−b cos θ, L + b sin θ), then pressed the protocol's depth along y."""
-    grating, section = scene.indenters[0], scene.section
-    theta, b = np.radians(grating.tilt), section.outer.b
-    touch = -b * np.cos(theta) - (section.cylinder_length + b * np.sin(theta)
-                                  - grating.centre_z) * np.tan(theta)
-    return touch + scene.history.deepest
-
-
-def along_plane(scene, y, z) -> np.ndarray:
-    """A point's distance along the grating's plane from the middle ridge's line (y_tip,
-    centre_z) at the start: (z − centre_z) cos θ + (y − y_tip) sin θ (flat: z − centre_z)."""
-    grating = scene.indenters[0]
-    theta = np.radians(grating.tilt)
-    return ((np.asarray(z) - grating.centre_z) * np.cos(theta)
-            + (np.asarray(y) - pivot_height(scene)) * np.sin(theta))
-
-
-def ridge_phases(scene, times, along) -> np.ndarray:
-    """The phase (rad) of each event in the ridges' passage over its site (at `along` on the
-    plane, `along_plane`): 0 when a ridge's centre line is over it, 2π a period later."""
-    travel = np.array([scene.history.tangential_at(t) for t in times])
-    return 2 * np.pi * (travel - np.asarray(along)) / scene.indenters[0].period
-
-
-def in_plane_frame(h: dict, tilt: float) -> dict:
-    """history.csv's forces in the grating's frame, rotated by the tilt θ about x: along its
-    normal n = (0, cos θ, −sin θ) and its direction of travel t = (0, sin θ, cos θ), under
-    the flat grating's names (force_N: F_n, tangential_z_force_N: F_t, ...): flat, the same."""
-    c, s = np.cos(np.radians(tilt)), np.sin(np.radians(tilt))
-    out = dict(h)
-    for normal, along in (("force_N", "tangential_z_force_N"),
-                          ("pressure_normal_force_N", "pressure_tangential_z_force_N")):
-        out[normal] = h[normal] * c - h[along] * s
-        out[along] = h[normal] * s + h[along] * c
-    return out
-
-
-def friction_share(h: dict, mu: float) -> np.ndarray:
-    """(F_t − F_p,t)/(μ F_p,n) in the grating's frame (`in_plane_frame`): the friction's share
-    of the force along the scan over μ times the pressure's normal force. The ridges run
-    across the finger, so every normal n lies in the (y, z) plane (F_p,x = 0); in gross slip
-    along the profile the friction traction is μp along the tangent R n, the same way
-    everywhere, so F_f = μ R F_p: F_f,t = μ F_p,n and F_f,n = −μ F_p,t, whence
-    F_p,n = F_n + μ F_p,t. The ratio is 1 in gross slip, below 1 where some of it sticks."""
-    pz = h["pressure_tangential_z_force_N"]
-    return (h["tangential_z_force_N"] - pz) / (mu * (h["force_N"] + mu * pz))
-
-
 def force_measures(scene, h: dict) -> dict:
     """Coulomb's ratios and the forces' modulation at the ridge frequency."""
-    mu, (_, _, f) = scene.indenters[0].friction, scan_setup(scene)
+    mu, (_, _, f) = scene.indenters[0].friction, ridge_frequency(scene)
     t = h["time_s"]
     t0, _, periods = window(scene, h)
     last = t >= t0 - 1e-9
@@ -110,7 +58,7 @@ def force_measures(scene, h: dict) -> dict:
     for k in ("force_N", "tangential_z_force_N"):
         s = h[k][last]
         # one period back, where the skin was already slipping (no stick left)
-        back = t[last] - 1 / f >= t[(t > scan_setup(scene)[0]) & (h["stick_area_mm2"] == 0)][0]
+        back = t[last] - 1 / f >= t[(t > ridge_frequency(scene)[0]) & (h["stick_area_mm2"] == 0)][0]
         repeat = s[back] - np.interp(t[last][back] - 1 / f, t, h[k])
         out[k] = {"mean": s.mean(), "peak_to_peak": np.ptp(s),
                   "harmonic": abs(steady_state(t, h[k], f, periods=periods, trend=True)),
@@ -121,7 +69,7 @@ def force_measures(scene, h: dict) -> dict:
 def spike_measures(scene, h: dict, afferents: dict, spikes: dict) -> dict:
     """Per class, over the last two periods, afferents under the strip: spikes, vector
     strength of the ridge phases, the population rate's harmonic at f over its mean."""
-    start, _, f = scan_setup(scene)
+    start, _, f = ridge_frequency(scene)
     t0, end, periods = window(scene, h)
     along_of = dict(zip(afferents["afferent"],
                         along_plane(scene, afferents["y_mm"], afferents["z_mm"])))
@@ -147,7 +95,7 @@ def spike_measures(scene, h: dict, afferents: dict, spikes: dict) -> dict:
 
 
 def forces_panel(ax, scene, h: dict, m: dict) -> None:
-    start, _, _ = scan_setup(scene)
+    start, _, _ = ridge_frequency(scene)
     t = 1e3 * h["time_s"]
     ax.plot(t, 1e3 * h["force_N"], "k-", label="normal force $F_n$ (half model)")
     ax.plot(t, 1e3 * h["tangential_z_force_N"], "-", color="tab:red",
@@ -190,7 +138,7 @@ def raster_panel(ax, scene, afferents: dict, spikes: dict) -> None:
 
 
 def rates_panel(ax, scene, h: dict, afferents: dict, spikes: dict) -> None:
-    _, _, f = scan_setup(scene)
+    _, _, f = ridge_frequency(scene)
     end = window(scene, h)[1]
     edges = np.arange(0, end + 1e-9, 1 / (6 * f))
     strip = np.abs(afferents["x_mm"]) < STRIP_X
@@ -201,7 +149,7 @@ def rates_panel(ax, scene, h: dict, afferents: dict, spikes: dict) -> None:
         ax.stairs(rate, 1e3 * edges, color=colour, label=f"{name} ({len(ids)} afferents)")
     for k in range(1, 20):
         tk = end - k / f
-        if tk > scan_setup(scene)[0]:
+        if tk > ridge_frequency(scene)[0]:
             ax.axvline(1e3 * tk, color="0.8", lw=0.6, zorder=0)
     ax.set_ylabel("population rate\n(spikes/s per afferent)")
     ax.set_xlabel("time (ms): pressed to 25 ms, then scanned at 80 mm/s")

@@ -10,6 +10,12 @@ import pytest
 from fingertip_dolfinx.errors import InputError
 from fingertip_dolfinx.geometry.indenters import Grating
 from fingertip_dolfinx.scene import load_scene, pulp_reach
+from fingertip_dolfinx.studies.scan import (
+    along_plane,
+    friction_share,
+    in_plane_frame,
+    ridge_phases,
+)
 from fingertip_dolfinx.studies.signals import steady_state, vector_strength
 
 # The scan's checks (check_scan), set against the run of 2026-11-26 with the grating tilted 20°
@@ -134,43 +140,6 @@ def test_the_vector_strength_is_one_for_locked_spikes_and_small_for_uniform_ones
         vector_strength([])
 
 
-def pivot_height(scene) -> float:
-    """y_tip of a tilted grating pressed home: its plane, through (y_tip, centre_z), tangent
-    to the cap (a circle of radius b = tip_length in the (y, z) plane) at
-    (−b cos θ, L + b sin θ), then pressed the protocol's depth along y."""
-    grating, section = scene.indenters[0], scene.section
-    theta, b = np.radians(grating.tilt), section.outer.b
-    touch = -b * np.cos(theta) - (section.cylinder_length + b * np.sin(theta)
-                                  - grating.centre_z) * np.tan(theta)
-    return touch + scene.history.deepest
-
-
-def ridge_phases(scene, times, sites) -> np.ndarray:
-    """The phase (rad) of each event in the ridges' passage over its site (y, z): 0 when a
-    ridge's centre line is over the site, 2π a period of travel later. The site's place is
-    its distance along the grating's plane from the middle ridge's line (y_tip, centre_z):
-    (z − centre_z) cos θ + (y − y_tip) sin θ (flat: z − centre_z)."""
-    grating = scene.indenters[0]
-    theta = np.radians(grating.tilt)
-    y, z = np.asarray(sites, dtype=float).reshape(-1, 2).T
-    along = (z - grating.centre_z) * np.cos(theta) + (y - pivot_height(scene)) * np.sin(theta)
-    travel = np.array([scene.history.tangential_at(t) for t in times])
-    return 2 * np.pi * (travel - along) / grating.period
-
-
-def in_plane_frame(h: dict, tilt: float) -> dict:
-    """history.csv's forces in the grating's frame, rotated by the tilt θ about x: along its
-    normal n = (0, cos θ, −sin θ) and its direction of travel t = (0, sin θ, cos θ), under
-    the flat grating's names (force_N: F_n, tangential_z_force_N: F_t, ...): flat, the same."""
-    c, s = np.cos(np.radians(tilt)), np.sin(np.radians(tilt))
-    out = dict(h)
-    for normal, along in (("force_N", "tangential_z_force_N"),
-                          ("pressure_normal_force_N", "pressure_tangential_z_force_N")):
-        out[normal] = h[normal] * c - h[along] * s
-        out[along] = h[normal] * s + h[along] * c
-    return out
-
-
 def check_scan(scene, h: dict, afferents: dict, spikes: dict) -> None:
     """The scan's physical checks on its history.csv, afferents.csv and spikes.csv, over its
     last two periods (its last one if the run was stopped before two); the forces in the
@@ -185,8 +154,7 @@ def check_scan(scene, h: dict, afferents: dict, spikes: dict) -> None:
     # pressure force along x); in gross slip along the profile the friction is μp along the
     # tangent R n, all the same way, so F_f = μ R F_p: in the grating's frame F_f,t = μ F_p,n,
     # F_p,n = F_n + μ F_p,t (as the 2D slide's); where some of the contact sticks, less.
-    pz = h["pressure_tangential_z_force_N"]
-    share = (h["tangential_z_force_N"] - pz) / (mu * (h["force_N"] + mu * pz))
+    share = friction_share(h, mu)
     assert np.all(np.abs(h["pressure_tangential_x_force_N"]) <= 1e-12 * h["force_N"])
     assert np.all(share <= 1 + 1e-6), share.max()
     slipping = t[(t > ramp) & (h["stick_area_mm2"] == 0)][0]  # gross slip from here on
@@ -208,7 +176,8 @@ def check_scan(scene, h: dict, afferents: dict, spikes: dict) -> None:
         assert np.median(np.abs(repeat)) < REPEAT * np.ptp(s), (key, repeat, np.ptp(s))
     # The afferents under the contact strip fire locked to the ridges passing over their
     # sites: the vector strength of their spikes' ridge phases is far above chance.
-    site_of = dict(zip(afferents["afferent"], zip(afferents["y_mm"], afferents["z_mm"])))
+    site_of = dict(zip(afferents["afferent"],
+                       along_plane(scene, afferents["y_mm"], afferents["z_mm"])))
     strip = afferents["afferent"][np.abs(afferents["x_mm"]) < 2.0]
     rows = (spikes["time_s"] >= t[last][0]) & np.isin(spikes["afferent"], strip)
     for name, bound in LOCKED_CLASSES.items():
