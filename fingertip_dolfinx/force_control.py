@@ -42,9 +42,13 @@ any rtol·F* of interest. A step that has not reached the tolerance after `MAX_S
 fails with a message saying how far it got; the stepper cuts it and, after `max_cuts` cuts,
 stops the run with that message (a tolerance asked is a tolerance delivered, or a stop).
 
-2D only: nothing here is 2D-specific (the depth moves every indenter along y, in 3D too), but
-a 3D run's forces are the half model's (a mirror factor) and this was not tried in 3D, so
-3D sections are refused (`loading.check_tangential_path`).
+In 3D (N, not N/mm) the target is the whole finger's normal force: a half model (section
+`half = true`, the mid-sagittal plane x = 0 on rollers) carries half of it, so its solved
+force is doubled (`DepthControl`'s `mirror`, the problem's `mirror_factor`) before it is
+compared with the target. history.csv keeps every force on one footing, the model's own:
+its `normal_force_target_N` (3D; `normal_force_target_N_per_mm` in 2D) is the target divided
+by the mirror factor, the value its `force_N` is held to (`problem.target_key`). The depth
+moves every indenter along y, in 2D and 3D alike.
 """
 
 from __future__ import annotations
@@ -64,7 +68,8 @@ MAX_SOLVES = 8
 
 @dataclass(frozen=True)
 class NormalForce:
-    """The target normal force F*(t) (N/mm in plane strain) through (times[i], values[i]),
+    """The target normal force F*(t) (N/mm in plane strain; N in 3D, the whole finger's) through
+    (times[i], values[i]),
     constant after the last point, held from `times[0]` on to the tolerance `rtol` (relative).
 
     Every value is > 0 (a force of 0 or less has no depth: the indenter would leave the skin),
@@ -72,7 +77,7 @@ class NormalForce:
     """
 
     times: tuple[float, ...]  # s, increasing, >= 0
-    values: tuple[float, ...]  # N/mm (2D): the indenters' total y-force
+    values: tuple[float, ...]  # N/mm (2D), N (3D, whole finger): the indenters' total y-force
     rtol: float = 1e-3  # |Fn − F*| <= rtol F* at every step from times[0] on
 
     def __post_init__(self):
@@ -82,7 +87,7 @@ class NormalForce:
         t = np.asarray(self.times)
         if len(self.times) != len(self.values) or len(self.times) < 1:
             raise InputError(where, f"{len(self.times)} times for {len(self.values)} values.",
-                             "give one force (N/mm) per time (s).")
+                             "give one force (N/mm in 2D, N in 3D) per time (s).")
         if t[0] < 0 or np.any(np.diff(t) <= 0) or not np.all(np.isfinite(t)):
             raise InputError(f"{where}.times", f"times must be >= 0 and increase strictly, got "
                              f"{self.times}.", "list the times in order, from 0 or later.")
@@ -90,8 +95,8 @@ class NormalForce:
         if not all(math.isfinite(v) and v > 0 for v in later) or not self.values[0] >= 0:
             raise InputError(f"{where}.values", f"got {self.values}: a normal force <= 0 "
                              "has no depth (the indenters would leave the skin).",
-                             "give forces > 0 (N/mm, the indenters' push on the finger); only "
-                             "a first value at t = 0 may be 0.")
+                             "give forces > 0 (N/mm in 2D, N in 3D: the indenters' push on the "
+                             "finger); only a first value at t = 0 may be 0.")
         if not (isinstance(self.rtol, int | float) and 0 < self.rtol < 1):
             raise InputError(f"{where}.rtol", f"got {self.rtol!r}.",
                              "give a relative tolerance in (0, 1), e.g. 1e-3.")
@@ -113,7 +118,7 @@ def normal_force_from_dict(data, where: str = "protocol.normal_force") -> Normal
     """`[protocol] normal_force = {times, values, rtol}` as a `NormalForce`."""
     if not isinstance(data, dict):
         raise InputError(where, f"got {data!r}.", "give a table {times = [...], values = "
-                         "[...]} of the target force (N/mm) at those times (s).")
+                         "[...]} of the target force (N/mm in 2D, N in 3D) at those times (s).")
     check_keys(where, data, ["times", "values", "rtol"], ["times", "values"])
     for key in ("times", "values"):
         value = data[key]
@@ -147,14 +152,22 @@ class DepthControl:
         Fn (N/mm) of the problem's current state.
     clock : callable
         The problem's time (s).
+    mirror : int
+        The whole finger's force over the model's (2 for a half model): `measure` and the
+        forces passed to `record` are the model's, the target and `samples` the whole's.
+    unit : str
+        The forces' unit in messages ("N/mm" in plane strain, "N" in 3D).
     """
 
     #: Newton solves per step before the step counts as failed (the stepper reads it).
     max_solves = MAX_SOLVES
 
     def __init__(self, target: NormalForce, depth: Callable[[float], float],
-                 measure: Callable[[], float], clock: Callable[[], float]):
-        self.target, self._depth, self._measure, self._clock = target, depth, measure, clock
+                 measure: Callable[[], float], clock: Callable[[], float], mirror: int = 1,
+                 unit: str = "N/mm"):
+        self.target, self._depth, self._clock = target, depth, clock
+        self._measure = lambda: mirror * measure()
+        self.mirror, self.unit = mirror, unit
         self.state = np.array([math.nan, math.nan, 0.0, float(depth(0.0)), 0.0, math.nan, 0.0])
         self.t_trial, self.d_trial = math.nan, math.nan
         self.samples: list[tuple[float, float]] = []
@@ -198,9 +211,9 @@ class DepthControl:
         return abs(self.samples[-1][1] - target) <= self.target.rtol * target
 
     def record(self, force: float) -> bool:
-        """Take the solved trial's Fn: True if within the tolerance; else set the next trial
-        depth and return False."""
-        self.samples.append((self.d_trial, float(force)))
+        """Take the solved trial's Fn (the model's: a half model's is doubled): True if within
+        the tolerance; else set the next trial depth and return False."""
+        self.samples.append((self.d_trial, self.mirror * float(force)))
         if self.reached:
             return True
         self.d_trial = self._next(self.target(self.t_trial))
@@ -240,12 +253,19 @@ class DepthControl:
 
     def shortfall(self) -> str:
         """Why the step's force missed the tolerance (the stepper's failure message)."""
-        target = self.target(self.t_trial)
+        target, u = self.target(self.t_trial), self.unit
         d, f = self.samples[-1]
-        return (f"the normal force was {f:.6g} N/mm at depth {d:.6g} mm after {len(self.samples)}"
-                f" solves, {abs(f - target) / target:.2g} from the target {target:.6g} N/mm, over "
+        whole = " (the whole finger's)" if self.mirror != 1 else ""
+        return (f"the normal force{whole} was {f:.6g} {u} at depth {d:.6g} mm after "
+                f"{len(self.samples)} solves, {abs(f - target) / target:.2g} from the target "
+                f"{target:.6g} {u}, over "
                 f"the tolerance protocol.normal_force.rtol = {self.target.rtol:g} (loosen it, or "
                 "tighten Newton's snes_atol and snes_rtol if the force is noisy at that level)")
+
+    @property
+    def tried(self) -> float:
+        """The depth (mm) of the step's last solve (its trial depth before any solve)."""
+        return self.samples[-1][0] if self.samples else float(self.d_trial)
 
     def advance(self) -> None:
         """The accepted step, at the problem's time: its depth and Fn become the last accepted

@@ -326,7 +326,7 @@ class TangentialPath:
     normal: LoadHistory
     tangential: PiecewiseLinear
     direction: tuple[float, float] = (1.0, 0.0)  # (x, z), made a unit vector
-    normal_force: NormalForce | None = None  # the target normal force (N/mm), or None
+    normal_force: NormalForce | None = None  # the target normal force (N/mm; 3D: N), or None
 
     def __post_init__(self):
         if not isinstance(self.tangential, PiecewiseLinear):
@@ -393,10 +393,6 @@ def check_tangential_path(history, gdim: int, half: bool) -> None:
     is exact for it (with its indenters on the plane x = 0, as a half model needs anyway)."""
     if not hasattr(history, "tangential_at"):
         return
-    if getattr(history, "normal_force", None) is not None and gdim == 3:
-        raise InputError("protocol.normal_force", "force control is 2D only (a 3D run's forces "
-                         "are the half model's, and it was not tried in 3D).",
-                         "prescribe the depth in 3D (drop normal_force), or use a 2D section.")
     d_x, d_z = getattr(history, "direction", (1.0, 0.0))
     if d_z != 0 and gdim == 2:
         raise InputError("protocol.tangential.direction", f"{list(history.direction)} has a "

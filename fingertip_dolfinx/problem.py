@@ -102,7 +102,8 @@ def wait_for_compiles_elsewhere(seconds: float = JIT_WAIT) -> None:
     jit.DOLFINX_DEFAULT_JIT_OPTIONS["timeout"] = (max(value, seconds), doc)
 
 
-#: Under force control: the diagnostics' (and history.csv's) name of the target normal force.
+#: Under force control: the diagnostics' (and history.csv's) name of the target normal force
+#: in plane strain (3D: `FingertipProblem.target_key`).
 TARGET_KEY = "normal_force_target_N_per_mm"
 #: With friction, 3D: the diagnostics' names of the contact area (p > 0) and the stick area.
 AREA_KEYS = ("contact_area_mm2", "stick_area_mm2")
@@ -187,7 +188,8 @@ class FingertipProblem(SteppableState):
         #: Force control (force_control.py): the depth found per step, or None.
         target = getattr(history, "normal_force", None)
         self.force_control = None if target is None else DepthControl(
-            target, history, self.normal_force, lambda: self.time)
+            target, history, self.normal_force, lambda: self.time, self.mirror_factor,
+            "N" if self.gdim == 3 else "N/mm")
         self.mark_accepted()
 
     def _unknowns_u(self) -> None:
@@ -349,6 +351,13 @@ class FingertipProblem(SteppableState):
             return "force_N", "reaction_N"
         return "force_N_per_mm", "reaction_N_per_mm"
 
+    @property
+    def target_key(self) -> str:
+        """Under force control, the diagnostics' name of the target normal force, in the force
+        column's unit and on its footing (the model's own: a half model's is half the whole
+        finger's target)."""
+        return TARGET_KEY if self.gdim == 2 else "normal_force_target_N"
+
     # --- what the recorder needs ---------------------------------------------------------------
     @property
     def qlv(self):
@@ -468,9 +477,10 @@ class FingertipProblem(SteppableState):
             "min_J": J_min,
         }
         control = self.force_control
-        if control is not None:  # the target and the solves the step's depth took
+        if control is not None:  # the target (the model's share) and the solves it took
             active = control.active(self.time)
-            out |= {TARGET_KEY: control.target(self.time) if active else math.nan,
+            share = control.target(self.time) / self.mirror_factor
+            out |= {self.target_key: share if active else math.nan,
                     "force_solves": len(control.samples) if active else 1}
         return out if self.friction is None else out | self._friction_diagnostics()
 

@@ -77,7 +77,7 @@ from .plotting.figures import (
 )
 from .plotting.pictures import field_pictures
 from .post import DerivedFields, FieldArrays, Profiles, Profiles3D
-from .problem import AREA_KEYS, TARGET_KEY, FingertipProblem
+from .problem import AREA_KEYS, FingertipProblem
 from .result import Result
 from .scene import Scene, scene_record
 from .stepping.stepper import TimeStepper
@@ -314,8 +314,8 @@ class Run:
             self.line_force = None
             self.profiles = Profiles(p, self.derived, scene.section.outer, scene.outputs)
             return
-        self.history = CsvLog(out / "history.csv", HISTORY_COLUMNS_3D + self._friction_columns,
-                              comm, after)
+        self.history = CsvLog(out / "history.csv", HISTORY_COLUMNS_3D + self._friction_columns
+                              + self._force_columns, comm, after)
         friction = p.friction is not None
         self.surfaces = {d: CsvLog(out / f"surface_{d}.csv", SURFACE_COLUMNS_3D
                                    + (FRICTION_SURFACE_COLUMNS_3D if friction else ()),
@@ -388,9 +388,11 @@ class Run:
 
     @property
     def _force_columns(self) -> tuple[str, ...]:
-        """Under force control (2D): the target normal force and the Newton solves the step's
-        depth took (history.csv's depth is then the one found)."""
-        return () if self.problem.force_control is None else (TARGET_KEY, "force_solves")
+        """Under force control: the target normal force (the model's share, as its force
+        column) and the Newton solves the step's depth took (history.csv's depth is then the
+        one found)."""
+        return () if self.problem.force_control is None else (self.problem.target_key,
+                                                              "force_solves")
 
     def on_step(self, report) -> None:
         """Write what the accepted step produced (its state is the converged one)."""

@@ -3,6 +3,7 @@ found per step (force_control.py): the depth search on closed-form force laws, t
 the scene record, and the coarse `shear` scene dragged under a held force."""
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -109,16 +110,15 @@ def test_bad_force_targets_are_refused(table, match):
     assert "normal_force" in error.value.where
 
 
-def test_force_control_needs_a_tangential_path_a_2d_section_and_step_control_by_iterations():
+def test_force_control_needs_a_tangential_path_and_step_control_by_iterations():
     from fingertip_dolfinx.scene import load_scene
 
     with pytest.raises(InputError, match="comes with a tangential path"):
         history_from_dict({"kind": "ramp-hold", "depth": 0.5, "ramp_time": 0.5,
                            "end_time": 1.0, "normal_force": {"times": [0.0], "values": [0.0]}})
-    path = TangentialPath(RampHold(0.5, 0.5, 1.0), PiecewiseLinear((0.0, 1.0), (0.0, 1.0)),
-                          (0.0, 1.0), NormalForce((0.5,), (1e-3,)))
-    with pytest.raises(InputError, match="2D only"):
-        check_tangential_path(path, 3, False)
+    along_z = TangentialPath(RampHold(0.5, 0.5, 1.0), PiecewiseLinear((0.0, 1.0), (0.0, 1.0)),
+                             (0.0, 1.0), NormalForce((0.5,), (1e-3,)))
+    check_tangential_path(along_z, 3, True)  # 3D, a half model too (the target: the whole's)
     with pytest.raises(InputError, match='control = "iterations"'):
         load_scene("slide-force", ["steps.control=error"])
 
@@ -185,5 +185,13 @@ def test_a_force_tolerance_that_cannot_be_met_stops_the_run_with_its_reason(tmp_
 
     held = "protocol.normal_force={times = [0.5], values = [1.0e-3], rtol = 1e-12}"
     scene = load_scene("shear", [*HELD_SHEAR, held, "steps.max_cuts=0"])
-    with pytest.raises(ConvergenceError, match=r"normal_force.rtol = 1e-12 \(loosen it"):
+    with pytest.raises(ConvergenceError, match=r"normal_force.rtol = 1e-12 \(loosen it") as stop:
         run_scene(scene, tmp_path, progress=False)
+    # the stop names the depths force control found (the protocol's stays at 0.5 mm): the
+    # accepted one at 0.5 s, then the last one tried, the depth its reason reports
+    message = str(stop.value)
+    accepted, tried = (float(x) for x in re.search(
+        r"\(depth (\S+) -> (\S+) mm, as found by force control\)", message).groups())
+    reported = float(re.search(r"at depth (\S+) mm after", message).group(1))
+    assert accepted == 0.5 and tried == pytest.approx(reported, rel=1e-5)
+    assert tried > 0.5 + 5e-3  # 1 mN/mm needs 0.513 mm (the held-shear test above)

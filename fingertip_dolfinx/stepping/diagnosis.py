@@ -116,13 +116,16 @@ def compaction_error(problem, found, t: float, t_new: float, iterate: bool) -> C
 
 
 def cuts_error(t: float, t_new: float, loads: tuple[float, float], cuts: int, why: str,
-               closed_iterates: int, note: str = "") -> ConvergenceError:
-    """The stop after `cuts` failed attempts in a row from t, the last to t_new; `note` is
-    added to the fix (`dynamic_friction_note`)."""
+               closed_iterates: int, note: str = "", found: bool = False) -> ConvergenceError:
+    """The stop after `cuts` failed attempts in a row from t, the last to t_new; `loads` the
+    load at t and at t_new, or (`found`, under force control) the depth accepted at t and the
+    last one tried for t_new; `note` is added to the fix (`dynamic_friction_note`)."""
     a, b = distinct(t, t_new)
     load_a, load_b = distinct(*loads)
+    loads = f"depth {load_a} -> {load_b} mm, as found by force control" if found else \
+        f"load {load_a} -> {load_b}"
     return ConvergenceError(
-        f"the step from t = {a} s to t = {b} s (load {load_a} -> {load_b}) "
+        f"the step from t = {a} s to t = {b} s ({loads}) "
         f"failed {cuts} times, the last with Δt = {t_new - t:.3g} s: {why}"
         f"{overshoot_note(closed_iterates)}. "
         f"Results up to t = {a} s are saved. Fix: lower the load or its rate, "

@@ -421,9 +421,14 @@ class TimeStepper:
         step.dt = self._control.cut(step.t_new - step.t)
         if step.cuts > self.options.max_cuts or step.dt < self.options.dt_min:
             problem.set_time(step.t)
-            raise cuts_error(step.t, step.t_new, (line.history(step.t), line.history(step.t_new)),
-                             step.cuts, step.why, step.closed_iterates,
-                             dynamic_friction_note(problem))
+            control = _force_control(problem, step.t_new)
+            # under force control the depths are the ones found (the accepted state's) and the
+            # last one tried, not the protocol's
+            loads = (line.history(step.t), line.history(step.t_new)) if control is None else \
+                (control.depth_at(step.t), control.tried)
+            raise cuts_error(step.t, step.t_new, loads, step.cuts, step.why,
+                             step.closed_iterates, dynamic_friction_note(problem),
+                             found=control is not None)
 
     def _compaction(self, line: _Timeline, step: _Step):
         """The compaction a failed attempt reached (admissibility.Compacted), or None; for a
