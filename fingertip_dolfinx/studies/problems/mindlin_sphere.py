@@ -177,18 +177,23 @@ class SphereBlock(MindlinBlock):
         forms = [fem.form(abs(f) * ds) for value, th in pairs for f in (value - th, th)]
         return [a, c, p0, x_tip, sign], forms + [fem.form(abs(self.friction.traction[2]) * ds)]
 
-    def l1_distances(self, a: float, c: float, p0: float, x_tip: float,
-                     sign: float) -> tuple[float, float, float]:
-        """(∫|f_x − q_th| ds, ∫|p − p_th| ds / ∫|p_th| ds, ∫|f_z| ds), the first and last
-        over ∫|q_th| ds (NaN if q_th = 0): integrals over the whole contact face (a traction
-        outside the closed form's contact is error too), with Mindlin's q_th (stick radius c,
-        sign of Q) and Hertz's p_th (a, p0) about the sphere at x_tip."""
+    def face_integrals(self, a: float, c: float, p0: float, x_tip: float,
+                       sign: float) -> np.ndarray:
+        """Over the half model's contact face (N): ∫|f_x − q_th| ds, ∫|q_th| ds,
+        ∫|p − p_th| ds, ∫|p_th| ds, ∫|f_z| ds, with Mindlin's q_th (stick radius c, the sign
+        of Q) and Hertz's p_th (a, p0) about the sphere at x_tip."""
         constants, forms = self._closed_form
         for constant, value in zip(constants, (a, c, p0, x_tip, sign)):
             constant.value = value
         comm = self.u.function_space.mesh.comm
-        n_q, d_q, n_p, d_p, n_z = (comm.allreduce(fem.assemble_scalar(f), op=MPI.SUM)
-                                   for f in forms)
+        return np.array([comm.allreduce(fem.assemble_scalar(f), op=MPI.SUM) for f in forms])
+
+    def l1_distances(self, a: float, c: float, p0: float, x_tip: float,
+                     sign: float) -> tuple[float, float, float]:
+        """(∫|f_x − q_th| ds, ∫|p − p_th| ds / ∫|p_th| ds, ∫|f_z| ds), the first and last
+        over ∫|q_th| ds (NaN if q_th = 0): integrals over the whole contact face
+        (`face_integrals`; a traction outside the closed form's contact is error too)."""
+        n_q, d_q, n_p, d_p, n_z = self.face_integrals(a, c, p0, x_tip, sign)
         q_scale = d_q if d_q > 0 else np.nan
         return float(n_q / q_scale), float(n_p / d_p), float(n_z / q_scale)
 
