@@ -29,7 +29,9 @@ public name is imported here (`from fingertip_dolfinx.studies.problems import Co
   R = 10 mm, the block on which the traction and the pressure converge to the closed forms.
 - `mindlin_sphere`: `MindlinSphere`, the 3D case, a rigid sphere on a half block (symmetry
   plane z = 0) dragged along x (`drag_sphere`): Mindlin's stick radius
-  c = a (1 − Q/(μP))^(1/3) measured along and across the drag (`stick_radii`).
+  c = a (1 − Q/(μP))^(1/3) measured along and across the drag (`stick_radii`), the traction's
+  and the pressure's L1 distances as integrals over the contact face. `MindlinSphere.exact()`:
+  incompressible (β = 0), Taylor–Hood (u, p), R = 10 mm, as the cylinder's.
 - `sliding`: `SlidingBlock`, a linear-elastic block with inertia on rollers, dragged along x
   by a flat plate through Coulomb friction (`drag_block`, the "generalized-alpha" scheme):
   gross slip at μ Fn, the mean velocity growing at μ Fn/m, and the discrete energy balance

@@ -43,13 +43,7 @@ class CattaneoMindlin(Hertz):
     mixed: bool = False  # Taylor–Hood (u, p) instead of the displacement alone
 
     def __post_init__(self):
-        # λ is infinite at ν = 1/2: the displacement element has no stress there, the mixed one
-        # takes 1/λ = 0 (and needs λ > 0, ν > 0, for its p = −λ tr ε)
-        if not (0.0 < self.nu <= 0.5 if self.mixed else -1.0 < self.nu < 0.5):
-            raise InputError("CattaneoMindlin.nu", f"ν = {self.nu!r} is outside "
-                             f"{'(0, 0.5]' if self.mixed else '(−1, 0.5)'}.",
-                             "use −1 < ν < 0.5, or mixed=True with 0 < ν <= 0.5 (0.5: "
-                             "incompressible).")
+        check_poisson("CattaneoMindlin.nu", self.nu, self.mixed)
 
     @classmethod
     def exact(cls, **fields) -> CattaneoMindlin:
@@ -74,7 +68,7 @@ class CattaneoMindlin(Hertz):
         element; mixed, E* = E/(1 − ν²), the plane-strain modulus that sets a half-space's
         normal stiffness (finite at ν = 1/2, where λ + 2G is not; the pressure unknown carries
         the volumetric stiffness)."""
-        return self.E / (1 - self.nu**2) if self.mixed else super().modulus
+        return half_space_modulus(self.E, self.nu) if self.mixed else super().modulus
 
     @property
     def shear_modulus(self) -> float:
@@ -111,30 +105,12 @@ class CattaneoMindlin(Hertz):
                 gmsh.model.addPhysicalGroup(1, [curve[1]], tag)
         gmsh.model.addPhysicalGroup(2, [1], 1)
 
-    def _elasticity(self, domain):
-        """(u, p or None, the stress, the test function v, the volume residuals): the P2
-        displacement alone, or mixed with the P1 pressure p = −λ tr ε (Taylor–Hood), whose
-        residual −∫ (tr ε + p/λ) q dx keeps its (p, p) block at 1/λ = 0 (a Constant)."""
-        V = fem.functionspace(domain, ("Lagrange", 2, (2,)))
-        u, v = fem.Function(V), ufl.TestFunction(V)
-        if not self.mixed:
-            P = self.stress(u)
-            return u, None, P, v, [ufl.inner(P, ufl.grad(v)) * ufl.dx]
-        p = fem.Function(fem.functionspace(domain, ("Lagrange", 1)), name="pressure")
-        q = ufl.TestFunction(p.function_space)
-        inverse_lambda = fem.Constant(domain, (1 + self.nu) * (1 - 2 * self.nu)
-                                      / (self.E * self.nu))
-        eps = ufl.sym(ufl.grad(u))
-        P = 2 * self.shear_modulus * eps - p * ufl.Identity(2)
-        return u, p, P, v, [ufl.inner(P, ufl.grad(v)) * ufl.dx,
-                            -(ufl.tr(eps) + inverse_lambda * p) * q * ufl.dx]
-
     def block(self, domain, facet_tags, *, gamma0: float = 10.0,
               method: str = "nitsche", gamma_ratio: float = 1.0) -> MindlinBlock:
         """The P2 displacement (with `mixed`, and the P1 pressure), the cylinder (touching at
         the origin, movable in x and y), the contact and friction terms, the residual and the
         clamped top."""
-        u, p, P, v, residuals = self._elasticity(domain)
+        u, p, P, v, residuals = elasticity(self, domain)
         V = u.function_space
         obstacle = Obstacle.at(domain, Cylinder(radius=self.R), y_tip=0.0, x_tip=0.0)
         ds = ufl.Measure("ds", domain, subdomain_data=facet_tags)
@@ -146,6 +122,45 @@ class CattaneoMindlin(Hertz):
         bcs = [fem.dirichletbc(np.zeros(2), top, V)]
         residual = residuals if p is not None else residuals[0]
         return MindlinBlock(u, P, obstacle, contact, friction, residual, bcs, facet_tags, p)
+
+
+def check_poisson(where: str, nu: float, mixed: bool) -> None:
+    """Refuse a ν the element cannot take: λ is infinite at ν = 1/2, where the displacement
+    element has no stress; the mixed one takes 1/λ = 0 (and needs λ > 0, ν > 0, for its
+    p = −λ tr ε)."""
+    if not (0.0 < nu <= 0.5 if mixed else -1.0 < nu < 0.5):
+        raise InputError(where, f"ν = {nu!r} is outside "
+                         f"{'(0, 0.5]' if mixed else '(−1, 0.5)'}.",
+                         "use −1 < ν < 0.5, or mixed=True with 0 < ν <= 0.5 (0.5: "
+                         "incompressible).")
+
+
+def half_space_modulus(E: float, nu: float) -> float:
+    """E* = E/(1 − ν²) (MPa), the modulus that sets a half-space's normal stiffness (Hertz's, in
+    plane strain and for the sphere): the mixed blocks' M of Nitsche's γ = γ0 M/h, finite at
+    ν = 1/2, where λ + 2G is not (the pressure unknown carries the volumetric stiffness)."""
+    return E / (1 - nu**2)
+
+
+def elasticity(problem, domain):
+    """(u, p or None, the stress, the test function v, the volume residuals) of `problem`'s
+    block (E, ν, `mixed`, `stress`, `shear_modulus`), in 2D or 3D: the P2 displacement alone,
+    or mixed with the P1 pressure p = −λ tr ε (Taylor–Hood), σ = 2G ε − p I, whose residual
+    −∫ (tr ε + p/λ) q dx keeps its (p, p) block at 1/λ = 0 (a Constant)."""
+    dim = domain.geometry.dim
+    V = fem.functionspace(domain, ("Lagrange", 2, (dim,)))
+    u, v = fem.Function(V), ufl.TestFunction(V)
+    if not problem.mixed:
+        P = problem.stress(u)
+        return u, None, P, v, [ufl.inner(P, ufl.grad(v)) * ufl.dx]
+    p = fem.Function(fem.functionspace(domain, ("Lagrange", 1)), name="pressure")
+    q = ufl.TestFunction(p.function_space)
+    E, nu = problem.E, problem.nu
+    inverse_lambda = fem.Constant(domain, (1 + nu) * (1 - 2 * nu) / (E * nu))
+    eps = ufl.sym(ufl.grad(u))
+    P = 2 * problem.shear_modulus * eps - p * ufl.Identity(dim)
+    return u, p, P, v, [ufl.inner(P, ufl.grad(v)) * ufl.dx,
+                        -(ufl.tr(eps) + inverse_lambda * p) * q * ufl.dx]
 
 
 @dataclass(frozen=True)
