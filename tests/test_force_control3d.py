@@ -14,8 +14,8 @@ from fingertip_dolfinx.scene import load_scene
 COARSE = ["section.mesh.min_size=1.0", "section.mesh.max_size=2.5",
           "section.mesh.bone_size=3.5", "output.pictures=false"]
 #: shear-3d's plate pressed 0.5 mm in one step (depth control: the half's 4.68 mN), then
-#: dragged 0.4 mm along the finger in two steps with the whole finger's force held at 10 mN
-#: (the half's 5 mN: deeper than 0.5 mm).
+#: dragged 0.4 mm along the finger (steps of up to 0.5 s) with the whole finger's force held at
+#: 10 mN (the half's 5 mN: deeper than 0.5 mm).
 HELD_PLATE = [*COARSE, "protocol.end_time=1.0", "output.times=[0.5, 1.0]",
               "steps.dt_initial=0.5", "steps.dt_max=0.5",
               "protocol.tangential={times = [0.0, 0.5, 0.75, 1.0], values = [0.0, 0.0, 0.2, 0.4],"
@@ -39,7 +39,8 @@ def test_the_plate_dragged_along_the_3d_finger_holds_the_whole_fingers_force(tmp
     h = read_csv(tmp_path / "history.csv")
     assert summary["mirror_factor"] == 2 and "normal_force_target_N_per_mm" not in h
     on = h["time_s"] > 0.5 + 1e-9
-    assert on.sum() == 2 and np.all(np.isnan(h["normal_force_target_N"][~on]))
+    # the step onto the held force (4.68 → 5 mN on the half) is cut: steps, not a fact, vary
+    assert on.sum() >= 2 and np.all(np.isnan(h["normal_force_target_N"][~on]))
     assert np.all(h["normal_force_target_N"][on] == WHOLE / 2)
     force = h["force_N"][on]
     assert np.all(np.abs(2 * force - WHOLE) <= RTOL * WHOLE), 2 * force
