@@ -457,3 +457,37 @@ def test_a_step_that_ends_exactly_on_a_kink_stops_there():
     assert step_times(marks, 90.0, 10.0 + 1e-13, 3000.0) == 100.0
     assert step_times(marks, 90.0, 9.9, 3000.0) == 100.0  # a sliver short: stretched to it
     assert step_times(marks, 90.0, 5.0, 3000.0) == 95.0
+
+
+def test_hold_growth_grows_only_the_held_steps():
+    """`hold_growth` = 3 changes no step of the ramp (the load moves) and grows every easy step
+    of the hold ×3 (×1.5 without it), up to dt_max and the end. (What longer steps cost in
+    accuracy is the scene's to measure: here, still relaxing at 3000 s, the last force moves by
+    2.5 %.)"""
+    common = {"dt_initial": 5.0, "dt_max": 1000.0}
+    plain = _confined(StepOptions(**common), "hold_plain_")
+    fast = _confined(StepOptions(hold_growth=3.0, **common), "hold_fast_")
+    ramp = [r.time for r in plain[2] if r.time <= RAMP.ramp_time + 1e-9]
+    assert [r.time for r in fast[2]][:len(ramp)] == ramp and ramp[-1] == RAMP.ramp_time
+    hold = [r for r in fast[2] if r.time > RAMP.ramp_time]
+    grown = 0
+    for before, after in zip(hold, hold[1:]):
+        if after.time < RAMP.end_time and before.newton_iterations <= 6:
+            assert after.dt == pytest.approx(min(3.0 * before.dt, common["dt_max"]))
+            grown += 1
+    assert grown >= 2 and len(fast[2]) < len(plain[2])  # measured: 12 steps against 14
+
+
+def test_a_hold_is_a_constant_load_along_every_axis():
+    """A step is held when the indentation and, on a tangential path, the displacement along
+    the skin are the same at its start, middle and end: a shear under a held indentation is no
+    hold, nor is a step over a sinusoid's whole period."""
+    from fingertip_dolfinx.loading import PiecewiseLinear, Sinusoid, TangentialPath
+    from fingertip_dolfinx.stepping.stepper import _held
+
+    press = RampHold(0.5, 0.5, 2.0)
+    assert not _held(press, 0.2, 0.5) and _held(press, 0.5, 2.0)
+    shear = TangentialPath(press, PiecewiseLinear((0.0, 1.0, 2.0), (0.0, 0.0, 1.0)))
+    assert _held(shear, 0.5, 1.0) and not _held(shear, 1.0, 1.5)
+    wave = Sinusoid(amplitude=0.1, frequency=1.0, end_time=10.0, offset=0.5)
+    assert wave(1.25) == wave(2.25) and not _held(wave, 1.25, 2.25)

@@ -86,11 +86,13 @@ class Outcome:
     error: float = math.nan  # error control: its error estimate over the tolerance
     order: int = 1  # error control: the order of that estimate
     doubled: bool = False  # error control: checked by step doubling (two halves of `taken`)
+    held: bool = False  # the load was held over the step (StepOptions.hold_growth)
 
 
 class IterationControl:
     """Steps by Newton's effort: ×`growth` after an easy step (at most `easy_iterations` Newton
-    iterations and no cut), the same after a hard one, ×`cut` after a failed attempt."""
+    iterations and no cut; ×`hold_growth` if one is given and the load was held over the step),
+    the same after a hard one, ×`cut` after a failed attempt."""
 
     estimates_error = False
 
@@ -100,7 +102,8 @@ class IterationControl:
     def next_dt(self, outcome: Outcome) -> float:
         opts = self.options
         if outcome.cuts == 0 and outcome.iterations <= opts.easy_iterations:
-            return min(max(outcome.planned, outcome.taken) * opts.growth, opts.dt_max)
+            growth = opts.hold_growth if outcome.held and opts.hold_growth else opts.growth
+            return min(max(outcome.planned, outcome.taken) * growth, opts.dt_max)
         return min(outcome.taken, opts.dt_max)  # a hard step: cuts have already shrunk it
 
     def cut(self, taken: float) -> float:

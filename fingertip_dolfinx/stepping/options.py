@@ -80,6 +80,12 @@ class StepOptions:
     dt_min: float = 1e-5  # s: a step cut below this stops the run
     dt_max: float = 10.0  # s: the largest step
     growth: float = 1.5  # factor after an easy step
+    #: The factor after an easy step taken while the load is held (the same load at the
+    #: step's start, middle and end; `control = "iterations"`), 0: `growth`. In a hold only
+    #: the tissues' relaxation changes the state, its rate falling as it goes, so the steps
+    #: may grow faster than in a ramp, whose contact zone must be followed. Measured on the 3D
+    #: line load: docs/benchmarks/3d.md, "Speed of the 3D line load".
+    hold_growth: float = 0.0
     cut: float = 0.5  # factor after a failed attempt
     max_cuts: int = 8  # failed attempts in a row before giving up
     easy_iterations: int = 6  # a step with at most this many Newton iterations is easy
@@ -129,6 +135,8 @@ class StepOptions:
             raise ValueError("need 0 < dt_min <= dt_initial <= dt_max")
         if not (self.growth >= 1 and 0 < self.cut < 1 and self.max_cuts >= 0):
             raise ValueError("need growth >= 1, 0 < cut < 1, max_cuts >= 0")
+        if not (self.hold_growth == 0 or self.hold_growth >= 1):
+            raise ValueError(f"need hold_growth = 0 (as growth) or >= 1, got {self.hold_growth}")
         if self.control not in CONTROLS:
             raise ValueError(f"control must be one of {CONTROLS}, got {self.control!r}")
         if self.scheme not in SCHEMES:
@@ -148,9 +156,11 @@ class StepOptions:
             raise ValueError("control = 'error' has no error estimate for the generalized-alpha "
                              "scheme: use control = 'iterations' (steps_per_period sets the "
                              "accuracy)")
-        if self.scheme in SECOND_ORDER_RATE and not self.growth < BDF2_GROWTH_LIMIT:
-            raise ValueError(f"BDF2 is unstable for step ratios above 1 + √2: need growth < "
-                             f"{BDF2_GROWTH_LIMIT:.4f}, got {self.growth}")
+        if self.scheme in SECOND_ORDER_RATE and not max(self.growth, self.hold_growth) < \
+                BDF2_GROWTH_LIMIT:
+            raise ValueError(f"BDF2 is unstable for step ratios above 1 + √2: need growth and "
+                             f"hold_growth < {BDF2_GROWTH_LIMIT:.4f}, got {self.growth} and "
+                             f"{self.hold_growth}")
 
 
 @dataclass

@@ -294,7 +294,9 @@ class TimeStepper:
             step = self._begin(line, limit(line.t, dt))
             self._settle(line, step)  # predict, solve, estimate; reject or cut until accepted
             report, state = self._accept(line, step, number=len(reports) + 1)
-            dt = report.next_dt = self._control.next_dt(step.outcome())
+            held = _held(history, step.t, step.t_new) and not _force_control(self.problem,
+                                                                             step.t_new)
+            dt = report.next_dt = self._control.next_dt(step.outcome(held))
             if self._control.estimates_error:
                 self._peaks = [max(a, _max_abs(f))
                                for a, f in zip(self._peaks, self.problem.unknowns)]
@@ -745,11 +747,20 @@ class _Step:
     cut_linear: int = 0  # Krylov iterations of failed attempts (not reported)
     closed_iterates: int = 0  # failed attempts whose iterate closed the pores
 
-    def outcome(self) -> Outcome:
-        """The accepted step, as the step-size policy sees it."""
+    def outcome(self, held: bool = False) -> Outcome:
+        """The accepted step, as the step-size policy sees it (`held`: under a held load)."""
         return Outcome(taken=self.t_new - self.t, planned=self.dt, iterations=self.iterations,
                        cuts=self.cuts, error=self.error, order=self.plan.order,
-                       doubled=self.middle is not None)
+                       doubled=self.middle is not None, held=held)
+
+
+def _held(history, t: float, t_new: float) -> bool:
+    """Whether the load is the same at t, halfway and at t_new: the indenters' displacement
+    `history(t)` and, on a tangential path, their displacement along the skin."""
+    along = getattr(history, "displacement_at", None)
+    loads = [np.hstack([history(s), *(along(s) if along else ())])
+             for s in (t, 0.5 * (t + t_new), t_new)]
+    return all(np.array_equal(loads[0], x) for x in loads[1:])
 
 
 def _force_control(problem, t_new: float):
