@@ -499,7 +499,7 @@ class Run:
                               mirror_factor=self.problem.mirror_factor, status=status)
         if self.scene.outputs.pictures:
             with whole_files(self.out, "figures", MPI.COMM_SELF) as folder:
-                _figures(self.out, self.scene.title, folder)
+                _figures(self.out, self.scene.title, folder, self.problem.mirror_factor == 2)
                 if self.stick_slip is not None and not self.three_d:
                     _friction_figure(self.out, self.scene.title, folder,
                                      max(self.problem.friction_coefficients))
@@ -562,11 +562,12 @@ def _friction_figure(out: Path, name: str, to: Path, mu: float) -> None:
         plot_friction(s, h, to / "friction.png", mu, title=name)
 
 
-def _figures(out: Path, name: str, to: Path) -> None:
-    """The curves of the run, from its own CSV files (rank 0; PNGs into `to`)."""
+def _figures(out: Path, name: str, to: Path, half: bool = False) -> None:
+    """The curves of the run, from its own CSV files (rank 0; PNGs into `to`); `half`: a half
+    model's forces."""
     h = read_csv(out / "history.csv")
     if h:
-        plot_force_history(h, to / "force_history.png", title=name)
+        plot_force_history(h, to / "force_history.png", title=name, half=half)
     s = read_csv(out / "surface_profile.csv") if (out / "surface_profile.csv").exists() else {}
     if s:
         plot_surface_profiles(s, to / "surface_profile.png", title=name)

@@ -246,3 +246,30 @@ def test_small_stresses_in_smaller_units(peak, factor, shown):
     # a marked extreme in its own unit: a 20 kPa peak on a map whose colours stop at 55 Pa
     assert value_text("sed (MPa)", 0.0201) == "20.1 kPa"
     assert value_text("e_min (-)", -3.25e-4) == "-3.25e-04"
+
+
+def test_the_force_history_names_a_half_models_force_and_draws_the_force_target(
+        tmp_path, monkeypatch):
+    """A half model's force is half the finger's: its axis says so; under force control the
+    target (on the same footing, empty before force control starts) is drawn at the force's
+    scale, so a held force lies on it."""
+    from matplotlib.figure import Figure
+
+    from fingertip_dolfinx.plotting.figures import plot_force_history
+
+    drawn = []
+    monkeypatch.setattr(Figure, "savefig", lambda fig, *a, **k: drawn.append(fig))
+    force = np.array([2e-4, 5e-4, 7.5e-4, 7.5e-4])
+    history = {"time_s": np.array([0.1, 0.2, 0.3, 0.4]),
+               "indenter_displacement_mm": np.array([0.1, 0.3, 0.5, 0.51]),
+               "force_N": force, "normal_force_target_N": np.array([np.nan, np.nan, 7.5e-4,
+                                                                    7.5e-4])}
+    plot_force_history(history, tmp_path / "f.png", half=True)
+    axis = drawn[-1].axes[1]
+    assert axis.get_ylabel() == "force on the half model (mN)"
+    measured, target = (line.get_ydata() for line in axis.get_lines())
+    np.testing.assert_allclose(target[2:], measured[-2:])  # mN, both
+    plot_force_history({k: v for k, v in history.items() if "target" not in k},
+                       tmp_path / "g.png")
+    assert drawn[-1].axes[1].get_ylabel() == "force (mN)"
+    assert len(drawn[-1].axes[1].get_lines()) == 1

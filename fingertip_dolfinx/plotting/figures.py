@@ -157,16 +157,25 @@ def _scaled(values, label: str) -> tuple[np.ndarray, str]:
 # Result figures, from the result files' columns (numpy arrays) on rank 0.
 
 
-def plot_force_history(history: dict, path: Path, title: str = "") -> None:
-    """Indenter displacement and force per unit length against time (cf. the paper's Fig. 3)."""
+def plot_force_history(history: dict, path: Path, title: str = "", half: bool = False) -> None:
+    """Indenter displacement and force per unit length against time (cf. the paper's Fig. 3);
+    `half`: the forces are a half model's (its mirror image carries as much again). Under force
+    control, the target (history's, on the same footing) dashed."""
     fig = Figure(figsize=(6.4, 6.0))
     (ax_d, ax_f) = fig.subplots(2, 1, sharex=True)
     t = np.concatenate([[0.0], history["time_s"]])
     ax_d.plot(t, np.concatenate([[0.0], history["indenter_displacement_mm"]]), "k-")
     ax_d.set_ylabel("indentation (mm)")
     column, unit = force_column(history)
-    force, label = _scaled(np.concatenate([[0.0], history[column]]), f"force ({unit})")
-    ax_f.plot(t, force, "o-", ms=3)
+    name = "force on the half model" if half else "force"
+    force = np.concatenate([[0.0], history[column]])
+    factor, label = display_unit(f"{name} ({unit})", float(np.nanmax(np.abs(force), initial=0)))
+    ax_f.plot(t, factor * force, "o-", ms=3)
+    target = next((history[k] for k in ("normal_force_target_N_per_mm", "normal_force_target_N")
+                   if k in history), None)
+    if target is not None:  # empty (NaN) before force control starts: not drawn there
+        ax_f.plot(history["time_s"], factor * target, "k--", lw=1, label="force control's target")
+        ax_f.legend(fontsize=8, loc="lower right")
     ax_f.set_ylabel(label)
     ax_f.set_xlabel("time (s)")
     if t[-1] > 10:
