@@ -331,9 +331,9 @@ def pulp_reach(section, depth: float, axis: str, tilt: float = 0.0) -> tuple[flo
     tip_length × the same root (the cap's cross-sections are the ellipse scaled down). A plane
     tilted by `tilt` degrees (rising towards the tip, "x" only) reaches where the lowest line
     lies within `depth` (along y) of the plane through its first touch."""
-    root = math.sqrt(1.0 - max(1.0 - depth / section.outer.b, 0.0) ** 2)
     if axis == "x" and tilt != 0:
         return _tilted_reach(section, depth, tilt)
+    root = math.sqrt(1.0 - max(1.0 - depth / section.outer.b, 0.0) ** 2)
     if axis == "x":
         return 0.0, section.cylinder_length + section.tip_length * root
     return -section.outer.a * root, section.outer.a * root
