@@ -112,7 +112,10 @@ class StepOptions:
     #: only the tissues' relaxation moves the state, so the kept tangent may still contract.
     #: Needs `jacobian_reuse`, whose threshold judges the kept Jacobian like any other: a
     #: first iteration that cuts the residual less reassembles, and a solve that fails with it
-    #: is redone from the same start with a fresh one (no cut). Measured on the 3D line load:
+    #: is redone from the same start with a fresh one (no cut). The Darcy and viscoelastic
+    #: terms make the Jacobian depend on Δt: it pays in a hold of steady steps (a confined
+    #: column at a fixed Δt: 9 Jacobians instead of 124), not in one whose steps grow x3
+    #: (`hold_growth`; the 3D line load: 81 factorisations instead of 78, off there).
     #: docs/benchmarks/solvers-3d.md, "Keeping the factorisation across steps".
     jacobian_carry: int = 0
     #: "iterations": grow by `growth` after easy steps. "error": steps chosen by their
