@@ -816,11 +816,12 @@ def scene_record(scene: Scene) -> dict:
 
 
 def _steps_record(steps) -> dict:
-    """The `[steps]` table; `tangent_start` only where it is on (a scene without it has the
-    record it had before the option existed: its runs still resume)."""
+    """The `[steps]` table; `tangent_start` and `jacobian_carry` only where they are on (a
+    scene without them has the record it had before the options existed: its runs resume)."""
     table = dataclasses.asdict(steps)
-    if not table["tangent_start"]:
-        del table["tangent_start"]
+    for key in ("tangent_start", "jacobian_carry"):
+        if not table[key]:
+            del table[key]
     return table
 
 

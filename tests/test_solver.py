@@ -150,6 +150,59 @@ def test_jacobian_reuse_reaches_the_same_states_with_fewer_factorisations():
     assert np.max(np.abs(reused - full)) < 1e-8 * np.max(np.abs(full))
 
 
+def _held_column(carry: int):
+    """A displacement-held Holmes–Mow column relaxing (ramp 0.1 s, hold to 30 s with its steps
+    grown x3, so that the Jacobian's Δt-dependent Darcy block changes from step to step): its
+    reports, the reactions and the stepper's JacobianReuse."""
+    history = RampHold(0.01, 0.1, 30.0)
+    column = ConfinedBlock(1, 8, history, tissue=mat.SUBCUTANEOUS_BIPHASIC, width=0.1,
+                           drained_top=True, top_displacement=True)
+    options = StepOptions(dt_initial=0.025, dt_max=30.0, growth=1.0, hold_growth=3.0,
+                          jacobian_reuse=0.02, jacobian_carry=carry)
+    stepper = TimeStepper(column, options, TIGHT, prefix=f"carry{carry}_")
+    reports = stepper.run(history, history.end_time)
+    stepper.close()
+    return reports, np.array([r.diagnostics["reaction"] for r in reports]), stepper.reuse
+
+
+def test_jacobian_carry_reaches_the_same_states_with_fewer_factorisations():
+    """StepOptions.jacobian_carry starts a held step from the Jacobian (and LU factors) the last
+    easy held step ended with. Only Newton's path changes: the same steps (all easy) reach the
+    same reactions to far below Newton's tolerance (a residual 1e-12 of the first; 1e-8 leaves
+    room for the conditioning), with fewer Jacobians assembled over the relaxation, although
+    each hold step is 3x longer than the last."""
+    plain, plain_force, plain_reuse = _held_column(0)
+    kept, kept_force, kept_reuse = _held_column(4)
+    assert [r.time for r in kept] == [r.time for r in plain] and len(plain) >= 8
+    assert np.max(np.abs(kept_force - plain_force)) < 1e-8 * np.max(np.abs(plain_force))
+    assert kept_reuse.assembled < plain_reuse.assembled
+
+
+@pytest.mark.parametrize("values, word", [
+    ({"jacobian_reuse": 0.05, "jacobian_carry": -1}, "whole number"),
+    ({"jacobian_reuse": 0.05, "jacobian_carry": 2.5}, "whole number"),
+    ({"jacobian_reuse": 0.05, "jacobian_carry": True}, "whole number"),
+    ({"jacobian_carry": 3}, "jacobian_reuse"),
+])
+def test_jacobian_carry_refuses_what_it_cannot_use(values, word):
+    """A carry that is no count of iterations, or one without `jacobian_reuse` (whose threshold
+    is what reassembles a kept Jacobian that stops contracting), is refused, naming the key."""
+    from fingertip_dolfinx.errors import InputError
+
+    with pytest.raises(InputError, match=word) as error:
+        StepOptions(**values)
+    assert "jacobian_carry" in error.value.where
+
+
+def test_jacobian_carry_is_refused_from_a_scene_naming_the_table():
+    from fingertip_dolfinx.errors import InputError
+    from fingertip_dolfinx.scene import load_scene
+
+    with pytest.raises(InputError, match="jacobian_reuse") as error:
+        load_scene("line-load", ["steps.jacobian_reuse=0", "steps.jacobian_carry=3"])
+    assert error.value.where.endswith("steps.jacobian_carry=3\": jacobian_carry")
+
+
 def test_krylov_column_counts_the_newton_iterations_it_reports(shared_tmp_path):
     """With MUMPS every Newton iteration is one linear solve of one "Krylov iteration", so the
     history's per-step Krylov count must equal its Newton count also in steps whose first

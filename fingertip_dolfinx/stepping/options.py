@@ -106,6 +106,18 @@ class StepOptions:
     #: chord step is then nearly as good as Newton's: the iterate is in the quadratic phase).
     #: Measured on the line load (benchmarks/line_load.py): see JacobianReuse.
     jacobian_reuse: float = 0.0
+    #: Start a step under a held load with the Jacobian, and its factorisation, that the
+    #: previous step ended with, when that step was held too, was not cut and took at most
+    #: this many Newton iterations (0: every step starts with a fresh Jacobian). In a hold
+    #: only the tissues' relaxation moves the state, so the kept tangent may still contract.
+    #: Needs `jacobian_reuse`, whose threshold judges the kept Jacobian like any other: a
+    #: first iteration that cuts the residual less reassembles, and a solve that fails with it
+    #: is redone from the same start with a fresh one (no cut). The Darcy and viscoelastic
+    #: terms make the Jacobian depend on Δt: it pays in a hold of steady steps (a confined
+    #: column at a fixed Δt: 9 Jacobians instead of 124), not in one whose steps grow x3
+    #: (`hold_growth`; the 3D line load: 81 factorisations instead of 78, off there).
+    #: docs/benchmarks/solvers-3d.md, "Keeping the factorisation across steps".
+    jacobian_carry: int = 0
     #: "iterations": grow by `growth` after easy steps. "error": steps chosen by their
     #: estimated local time-integration error (rtol, atol); `growth` is then the largest
     #: factor from one step to the next.
@@ -146,6 +158,7 @@ class StepOptions:
             raise ValueError("need rtol >= 0, atol >= 0, rtol + atol > 0, 0 < safety <= 1")
         if not 0.0 <= self.jacobian_reuse < 1.0:
             raise ValueError(f"need 0 <= jacobian_reuse < 1, got {self.jacobian_reuse}")
+        self._check_carry()
         if not 0.0 <= self.rho_inf <= 1.0:
             raise ValueError(f"need 0 <= rho_inf <= 1, got {self.rho_inf}")
         if isinstance(self.steps_per_period, bool) or not (
@@ -161,6 +174,20 @@ class StepOptions:
             raise ValueError(f"BDF2 is unstable for step ratios above 1 + √2: need growth and "
                              f"hold_growth < {BDF2_GROWTH_LIMIT:.4f}, got {self.growth} and "
                              f"{self.hold_growth}")
+
+    def _check_carry(self) -> None:
+        """`jacobian_carry`: a count of Newton iterations, and only with `jacobian_reuse`,
+        whose threshold is the carried Jacobian's fallback."""
+        carry = self.jacobian_carry
+        if isinstance(carry, bool) or not isinstance(carry, int) or carry < 0:
+            raise InputError("jacobian_carry", f"must be a whole number of Newton iterations "
+                             f">= 0, got {carry!r}.",
+                             "write e.g. jacobian_carry = 4 (0: off).")
+        if carry > 0 and not self.jacobian_reuse > 0:
+            raise InputError("jacobian_carry", f"a carry ({carry}) needs jacobian_reuse > 0, "
+                             "whose threshold judges the kept Jacobian (without it, one that "
+                             "stops contracting would never be reassembled).",
+                             "set jacobian_reuse too (e.g. 0.05), or jacobian_carry = 0.")
 
 
 @dataclass

@@ -189,6 +189,9 @@ class TimeStepper:
         #: Jacobian (and factorisation) reuse within a step (StepOptions.jacobian_reuse).
         reuse = self.options.jacobian_reuse
         self.reuse = JacobianReuse(self.snes, reuse) if reuse > 0 else None
+        #: Whether the next step may start from the Jacobian the last one ended with
+        #: (StepOptions.jacobian_carry; `_carries`).
+        self._kept = False
         #: The predictor where no extrapolation starts a step (StepOptions.tangent_start).
         self.tangent = TangentPredictor(self.snes, self.nonlinear) \
             if self.options.tangent_start else None
@@ -256,11 +259,12 @@ class TimeStepper:
 
         self.snes.setFunction(residual, vector)
 
-    def solve_once(self) -> tuple[int, int]:
-        """One Newton solve from the current state; returns (converged reason, iterations)."""
+    def solve_once(self, keep: bool = False) -> tuple[int, int]:
+        """One Newton solve from the current state; returns (converged reason, iterations).
+        `keep`: start from the Jacobian kept from the last solve (JacobianReuse.start)."""
         self._evaluations, self._closed = 0, None
         if self.reuse is not None:
-            self.reuse.start()
+            self.reuse.start(keep)
         with np.errstate(all="ignore"):
             self.nonlinear.solve()
         self._last_linear = self.snes.getLinearSolveIterations()
@@ -290,6 +294,7 @@ class TimeStepper:
         self._peaks = [_max_abs(f) for f in self.problem.unknowns]
         limit = PeriodLimit(history, self.options.steps_per_period)
         dt, reports = self.options.dt_initial, []
+        self._kept = False  # a run starts with a fresh Jacobian
         while not line.finished():
             step = self._begin(line, limit(line.t, dt))
             self._settle(line, step)  # predict, solve, estimate; reject or cut until accepted
@@ -297,6 +302,7 @@ class TimeStepper:
             held = _held(history, step.t, step.t_new) and not _force_control(self.problem,
                                                                              step.t_new)
             dt = report.next_dt = self._control.next_dt(step.outcome(held))
+            self._kept = self._carries(step, held)
             if self._control.estimates_error:
                 self._peaks = [max(a, _max_abs(f))
                                for a, f in zip(self._peaks, self.problem.unknowns)]
@@ -352,12 +358,39 @@ class TimeStepper:
                 self.reuse.start()  # a fresh Jacobian: the accepted state's, not a kept one
             self.tangent.predict(problem, step.t, step.t_new)
             predicted = 1
-        step.reason, step.iterations = self.solve_once() if control is None else \
-            self._solve_to_force(control, step.t_new)
+        if control is not None:
+            step.reason, step.iterations = self._solve_to_force(control, step.t_new)
+        elif self._kept and not predicted and step.cuts == step.rejected == 0 and _held(
+                line.history, step.t, step.t_new):
+            step.reason, step.iterations = self._solve_from_kept()
+        else:
+            step.reason, step.iterations = self.solve_once()
         step.iterations += predicted
         step.why = (problem.inadmissible() or "").rstrip(".") if step.reason > 0 else ""
         if control is not None and step.reason > 0 and not step.why and not control.reached:
             step.why = control.shortfall()  # a force off its tolerance: the step is cut
+
+    def _carries(self, step: _Step, held: bool) -> bool:
+        """Whether the step after the accepted `step` may start from the Jacobian it ended
+        with (StepOptions.jacobian_carry): `step` was taken under a held load, uncut, in at
+        most `jacobian_carry` Newton iterations; the next step must be held too (`_attempt`)."""
+        most = self.options.jacobian_carry
+        return (self.reuse is not None and most > 0 and held and step.cuts == 0
+                and step.iterations <= most)
+
+    def _solve_from_kept(self) -> tuple[int, int]:
+        """Solve a held step from the Jacobian the last step ended with; if Newton fails with
+        it, solve again from the same start with a fresh Jacobian, as a step without the
+        option would (the failed solve's iterations are counted: they were spent). The kept
+        Jacobian is reassembled as soon as an iteration cuts the residual by less than the
+        reuse threshold (JacobianReuse)."""
+        start = [f.x.array.copy() for f in self.problem.unknowns]
+        reason, iterations = self.solve_once(keep=True)
+        if reason > 0:
+            return reason, iterations
+        _assign(self.problem.unknowns, start)
+        reason, more = self.solve_once()
+        return reason, iterations + more
 
     def _solve_to_force(self, control, t_new: float) -> tuple[int, int]:
         """Under force control (force_control.py): solve the step at the trial depth, each
@@ -574,8 +607,9 @@ class JacobianReuse:
     triangular solves (PETSc refactorises only a matrix whose values changed). Within a solve,
     the Jacobian is kept at an iterate whose residual norm is at most `threshold` times the
     previous iterate's (Newton is in its quadratic phase: the chord step from there is almost
-    as good), else reassembled; every solve starts with a fresh one. Newton's tolerances are
-    unchanged: only the path to them differs.
+    as good), else reassembled; every solve starts with a fresh one, except a held step's
+    after an easy held step with StepOptions.jacobian_carry (TimeStepper._carries), which
+    starts from the kept one. Newton's tolerances are unchanged: only the path to them differs.
 
     A threshold too loose keeps Jacobians in the slow, contact-driven phase of a ramp's steps,
     which then take more iterations and are cut; the line-load scene uses 0.02, well clear of
@@ -602,9 +636,11 @@ class JacobianReuse:
 
         snes.setJacobian(jacobian, J, P)
 
-    def start(self) -> None:
-        """A new solve (a step, or its retry) starts from a fresh Jacobian."""
-        self._valid, self._norm = False, None
+    def start(self, keep: bool = False) -> None:
+        """A new solve (a step, or its retry) starts from a fresh Jacobian; with `keep`, from
+        the one kept (the last assembled, if any), whose first iteration is judged by the
+        threshold like any kept Jacobian's."""
+        self._valid, self._norm = self._valid and keep, None
 
 
 class TangentPredictor:
