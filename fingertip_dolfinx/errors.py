@@ -56,8 +56,28 @@ class MaterialInstabilityError(FingertipError, RuntimeError):
     """A hyperelastic state left the region where the Drucker condition holds."""
 
 
+class SolveInterrupted(Exception):
+    """A signal asked the run to stop in the middle of a time step's Newton solve.
+
+    The stepper ends the solve after the Newton iteration under way (`TimeStepper.stop_asked`,
+    checked on every rank together), puts back the last accepted state and time and raises
+    this; the runner then stops as at a step boundary (`RunInterrupted`). A step of a fine
+    mesh can take an hour: a run must not wait for it to end to stop.
+
+    Parameters
+    ----------
+    time : float
+        The last accepted time (s): the state the unknowns hold again.
+    """
+
+    def __init__(self, time: float):
+        self.time = time
+        super().__init__(f"a signal stopped the step's Newton solve; the state is t = {time:.6g} s")
+
+
 class RunInterrupted(KeyboardInterrupt):
-    """A run stopped by SIGINT (Ctrl-C) or SIGTERM at a step boundary.
+    """A run stopped by SIGINT (Ctrl-C) or SIGTERM at a step boundary (within a step's Newton
+    solve, after the iteration under way, the step then not taken).
 
     Raised after the run has written its files and summary.json (``"status":
     "interrupted"``); ``resume=True`` (``--resume``) continues it. A KeyboardInterrupt, so that

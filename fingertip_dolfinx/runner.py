@@ -12,8 +12,9 @@ interruption) writes every afferent's spike train (spikes.csv, afferents.csv, ra
 the population picture (population.png).
 
 A resume is checked against the scene record kept with the checkpoint (`check_resume`).
-SIGINT (Ctrl-C) and SIGTERM stop a run at the next step boundary, all ranks at the same one:
-its files are closed, summary.json says `"status": "interrupted"`, and `RunInterrupted` (a
+SIGINT (Ctrl-C) and SIGTERM stop a run at the next step boundary, all ranks at the same one
+(within a step, after the Newton iteration under way: the step is then not taken): its files
+are closed, summary.json says `"status": "interrupted"`, and `RunInterrupted` (a
 KeyboardInterrupt) is raised; the previous signal handlers are back in place when a run returns.
 """
 
@@ -38,7 +39,7 @@ from .afferents.receptors import (
     surface_sites,
     write_spike_files,
 )
-from .errors import ConvergenceError, InputError, RunInterrupted, on_root
+from .errors import ConvergenceError, InputError, RunInterrupted, SolveInterrupted, on_root
 from .geometry.fingertip3d import Fingertip3D
 from .geometry.mesh import build_mesh, write_xdmf
 from .geometry.mesh3d import build_mesh3d
@@ -139,7 +140,7 @@ def run_scene(scene: Scene, out: str | Path, *, resume: bool = False, progress: 
             job.run()
         except ConvergenceError as error:  # CompactionError too: its type reaches the caller
             failed, status = error, "failed"
-        except _Stop:
+        except (_Stop, SolveInterrupted):  # at a step boundary, or within a step's solve
             status = "interrupted"
         why = (str(failed) if failed is not None else None if status == "completed" else
                f"interrupted by {interrupts.received} at t = {job.time:.6g} s")
@@ -258,6 +259,7 @@ class Run:
         self.time = self.start_time
         self.stepper = TimeStepper(self.problem, steps, scene.petsc_options,
                                    linear=scene.linear)
+        self.stepper.stop_asked = self._asked  # a step of a fine mesh may take an hour
         self.dofs = sum(f.function_space.dofmap.index_map.size_global
                         * f.function_space.dofmap.index_map_bs for f in self.problem.unknowns)
         after = self.start_time if resume else None
@@ -427,16 +429,21 @@ class Run:
         self._stop_if_asked(report.time)
 
     def _stop_if_asked(self, t: float) -> None:
-        """After a step, with everything written: stop if a signal came to any rank (all
-        ranks stop at the same step: mpiexec may deliver the signal at different moments)."""
-        if self.interrupts is None:
-            return
-        self.interrupts.arm()
-        asked = self.interrupts.received is not None
-        if self.comm.allreduce(asked, op=MPI.LOR) and t < self.scene.history.end_time - 1e-12:
-            if self.interrupts.received is None:  # another rank's signal
-                self.interrupts.received = "a signal to another rank"
+        """After a step, with everything written: stop if a signal came to any rank."""
+        if self._asked() and t < self.scene.history.end_time - 1e-12:
             raise _Stop
+
+    def _asked(self) -> bool:
+        """Whether a signal came to any rank, on every rank together (after a step, and within
+        a step after each Newton iteration: mpiexec may deliver it at different moments)."""
+        if self.interrupts is None:
+            return False
+        self.interrupts.arm()
+        if not self.comm.allreduce(self.interrupts.received is not None, op=MPI.LOR):
+            return False
+        if self.interrupts.received is None:  # another rank's signal
+            self.interrupts.received = "a signal to another rank"
+        return True
 
     def _write_output_time(self, t: float) -> None:
         for direction, log in self.surfaces.items():

@@ -24,6 +24,7 @@ from fingertip_dolfinx.errors import InputError, RunInterrupted
 from fingertip_dolfinx.outputs import check_resume, read_csv
 from fingertip_dolfinx.runner import Run, run_scene
 from fingertip_dolfinx.scene import load_scene, scene_record
+from fingertip_dolfinx.stepping.stepper import TimeStepper
 
 REPO = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
@@ -200,6 +201,40 @@ def _interrupted_in_step_two(tmp_path, monkeypatch):
     assert summary["status"] == "interrupted" and summary["end_time_s"] == pytest.approx(0.2)
     assert not summary["converged"]
     assert signal.getsignal(signal.SIGINT) is before
+
+
+def test_a_signal_within_a_step_stops_its_newton_solve_and_resume_finishes_it(
+        finished, tmp_path, monkeypatch):
+    """A SIGINT during the third step's Newton solve (a step of a fine mesh may take an hour):
+    the solve ends after the iteration under way, the step is not taken, the run stops at
+    the second step's state with its record, and `--resume` ends where the uninterrupted run
+    ends (the final force to the Newton tolerance: the state put back is the accepted one)."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    check, solves, seen = TimeStepper._check_stop, [], []
+
+    def signal_in_step_three(self, snes, its, fnorm):
+        solves.extend([its] if its == 0 else [])  # the steps are 0.1 s each, none cut
+        if len(solves) == 3:
+            seen.append(its)
+            if its == 1:
+                os.kill(os.getpid(), signal.SIGINT)
+        check(self, snes, its, fnorm)
+
+    monkeypatch.setattr(TimeStepper, "_check_stop", signal_in_step_three)
+    try:
+        with pytest.raises(RunInterrupted) as caught:
+            run_scene(load_scene("1pt", SETS), tmp_path, progress=False, comm=MPI.COMM_SELF)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert seen == [0, 1]  # no iteration after the one the signal came in
+    assert caught.value.time == pytest.approx(0.2)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["status"] == "interrupted" and summary["end_time_s"] == pytest.approx(0.2)
+    assert read_csv(tmp_path / "history.csv")["time_s"][-1] == pytest.approx(0.2)
+    monkeypatch.undo()
+    run_scene(load_scene("1pt", SETS), tmp_path, progress=False, comm=MPI.COMM_SELF,
+              resume=True)
+    assert _final_force(tmp_path) == pytest.approx(_final_force(finished), rel=1e-7)
 
 
 def _interrupt(out: Path, ranks: int, sig: signal.Signals) -> subprocess.CompletedProcess:

@@ -70,7 +70,7 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..errors import FingertipError
+from ..errors import FingertipError, SolveInterrupted
 from ..loading import step_times
 from ..physics.contact import NonConservativeContactWarning
 from .controllers import (
@@ -186,6 +186,12 @@ class TimeStepper:
         self.linear_iterations, self._last_linear = 0, 0
         self._watch_residual()
         self._set_dynamics()
+        #: Called after every Newton iteration on every rank together (a collective callable,
+        #: e.g. the runner's signal check): True ends the solve there, puts back the accepted
+        #: state and raises SolveInterrupted. None: never asked.
+        self.stop_asked: Callable[[], bool] | None = None
+        self._interrupted = False
+        self.snes.setMonitor(self._check_stop)
         #: Jacobian (and factorisation) reuse within a step (StepOptions.jacobian_reuse).
         reuse = self.options.jacobian_reuse
         self.reuse = JacobianReuse(self.snes, reuse) if reuse > 0 else None
@@ -259,6 +265,13 @@ class TimeStepper:
 
         self.snes.setFunction(residual, vector)
 
+    def _check_stop(self, snes, its: int, fnorm: float) -> None:
+        """SNES's monitor: end the solve after this iteration if a stop was asked (the
+        reason, a divergence, only ends it: `solve_once` reads `_interrupted`)."""
+        if its > 0 and self.stop_asked is not None and self.stop_asked():
+            self._interrupted = True
+            snes.setConvergedReason(PETSc.SNES.ConvergedReason.DIVERGED_FUNCTION_DOMAIN)
+
     def solve_once(self, keep: bool = False) -> tuple[int, int]:
         """One Newton solve from the current state; returns (converged reason, iterations).
         `keep`: start from the Jacobian kept from the last solve (JacobianReuse.start)."""
@@ -267,6 +280,9 @@ class TimeStepper:
             self.reuse.start(keep)
         with np.errstate(all="ignore"):
             self.nonlinear.solve()
+        if self._interrupted:
+            self._interrupted = False
+            raise SolveInterrupted(math.nan)  # the step's time: `run` puts its state back
         self._last_linear = self.snes.getLinearSolveIterations()
         self.linear_iterations += self._last_linear
         return self.snes.getConvergedReason(), self.snes.getIterationNumber()
@@ -297,7 +313,11 @@ class TimeStepper:
         self._kept = False  # a run starts with a fresh Jacobian
         while not line.finished():
             step = self._begin(line, limit(line.t, dt))
-            self._settle(line, step)  # predict, solve, estimate; reject or cut until accepted
+            try:
+                self._settle(line, step)  # predict, solve, estimate; reject or cut until taken
+            except SolveInterrupted:
+                self._put_back(step)
+                raise SolveInterrupted(step.t) from None
             report, state = self._accept(line, step, number=len(reports) + 1)
             held = _held(history, step.t, step.t_new) and not _force_control(self.problem,
                                                                              step.t_new)
@@ -315,6 +335,15 @@ class TimeStepper:
         return reports
 
     # --- one step: its attempts, until one is accepted -----------------------------------------
+    def _put_back(self, step: _Step) -> None:
+        """The accepted state at the step's start, as if the step had never begun (a doubled
+        step's half may have advanced the history: its saved state has it all)."""
+        if step.saved is not None:
+            _restore(self.problem, step.saved)
+        else:
+            self.problem.restore()
+        self.problem.set_time(step.t)
+
     def _begin(self, line: _Timeline, dt: float) -> _Step:
         """A step from `line.t` of (at most) `dt`; under error control the first step after a
         kink saves the whole state, for its step doubling."""
