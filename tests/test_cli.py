@@ -3,6 +3,9 @@
 import json
 import subprocess
 import sys
+from pathlib import Path
+
+import pytest
 
 from fingertip_dolfinx.cli import main
 
@@ -117,3 +120,46 @@ def test_sweep_spots_without_spacings_is_refused(tmp_path, capsys):
     assert main(["sweep", "1pt", "--param", "materials.skin.mu", "--factors", "1", "--spots",
                  "--out", str(tmp_path)]) == 2
     assert "sweep --spots" in capsys.readouterr().err
+
+
+
+#: Allocate, fill and free a block of 256 MiB twice with C's malloc (as MUMPS's Fortran does;
+#: numpy asks for huge pages) and print the minor page faults of the second time.
+_REALLOCATE = """
+import ctypes, ctypes.util, resource, sys
+from fingertip_dolfinx.cli import keep_freed_memory
+libc = ctypes.CDLL(ctypes.util.find_library("c"))
+libc.malloc.restype = ctypes.c_void_p
+libc.free.argtypes = [ctypes.c_void_p]
+if sys.argv[1] == "keep":
+    assert keep_freed_memory()
+def cycle():
+    block = libc.malloc(2**28)
+    ctypes.memset(block, 1, 2**28)
+    libc.free(block)
+cycle()
+before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+cycle()
+print(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before)
+"""
+PAGES = 2**28 // 4096
+
+
+def _thp_always() -> bool:
+    path = Path("/sys/kernel/mm/transparent_hugepage/enabled")
+    return path.exists() and "[always]" in path.read_text()
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux") or _thp_always(),
+                    reason="glibc's mallopt; with huge pages always on, few faults either way")
+def test_the_command_reuses_freed_memory_without_page_faults():
+    """A block of 256 MiB (65 536 pages of 4 KiB) freed and allocated again: glibc's default
+    maps it afresh, each page a fault the kernel zeroes; the command's setting reuses the
+    freed pages (the pattern of MUMPS's work arrays, one allocation per LU factorisation)."""
+    def faults(mode):
+        out = subprocess.run([sys.executable, "-c", _REALLOCATE, mode], check=True,
+                             capture_output=True, text=True).stdout
+        return int(out.split()[-1])
+
+    assert faults("default") > PAGES // 2  # most pages fault again
+    assert faults("keep") < PAGES // 100   # reused: no new pages
