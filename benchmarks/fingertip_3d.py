@@ -19,32 +19,25 @@ terms alone, at a smooth deformed state
 e.g. for `--set model.quadrature_degree=2` against 4.
 """
 
-import argparse
 import os
 import resource
-import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
-from timing import tally
+from timing import scene_and_out, scene_parser, tally
 
 import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
 from fingertip_dolfinx.errors import RunInterrupted
 from fingertip_dolfinx.runner import Run, run_scene
-from fingertip_dolfinx.scene import load_scene
 from fingertip_dolfinx.stepping.stepper import TimeStepper
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__,
-                                     formatter_class=argparse.RawTextHelpFormatter)
-    parser.add_argument("--scene", default="line-load-3d")
+    parser = scene_parser(__doc__, "line-load-3d")
     parser.add_argument("--min-size", type=float, default=None, help="mm, under the load")
     parser.add_argument("--linear", choices=("direct", "iterative"), default="direct")
-    parser.add_argument("--set", dest="overrides", action="append", default=[])
-    parser.add_argument("--out", type=Path, default=None, help="keep the results here")
     parser.add_argument("--assembly", type=int, default=0, metavar="N",
                         help="only time N Jacobian assemblies")
     args = parser.parse_args()
@@ -52,8 +45,7 @@ def main():
     overrides = [f"solver.linear={args.linear}", *args.overrides]
     if args.min_size is not None:
         overrides.append(f"section.mesh.min_size={args.min_size}")
-    scene = load_scene(args.scene, overrides)
-    out = args.out or Path(comm.bcast(tempfile.mkdtemp() if comm.rank == 0 else None))
+    scene, out = scene_and_out(args, comm, overrides)
 
     if args.assembly:
         return time_assembly(scene, out, args.assembly)

@@ -10,35 +10,27 @@ phase at 10, 100 and 250 Hz (the lead's comparison points with the time-domain r
                                                    [--set key=value ...]
 """
 
-import argparse
 import math
-import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
+from timing import scene_and_out, scene_parser
 
 import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
 from fingertip_dolfinx.frequency_response import pressing_of, run_frequency_response
 from fingertip_dolfinx.geometry.mesh import build_mesh
 from fingertip_dolfinx.harmonic import HarmonicSolver, linearise, press
 from fingertip_dolfinx.problem import FingertipProblem
-from fingertip_dolfinx.scene import load_scene
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__,
-                                     formatter_class=argparse.RawTextHelpFormatter)
-    parser.add_argument("--scene", default="vibrotactile")
+    parser = scene_parser(__doc__, "vibrotactile")
     parser.add_argument("--frequencies", default="1:1000:40")
     parser.add_argument("--state", default="held", choices=("held", "relaxed"))
-    parser.add_argument("--set", dest="overrides", action="append", default=[])
-    parser.add_argument("--out", type=Path, default=None, help="keep the results here")
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
-    scene = load_scene(args.scene, args.overrides)
-    out = args.out or Path(comm.bcast(tempfile.mkdtemp() if comm.rank == 0 else None))
+    scene, out = scene_and_out(args, comm)
     started = time.perf_counter()
     s = run_frequency_response(scene, out, frequencies=args.frequencies, state=args.state,
                                progress=False, comm=comm)

@@ -15,29 +15,21 @@ penalty contact (and Nitsche's with θ = 1); not with Nitsche's θ = 0 or with f
         --set protocol.end_time=3 --set "output.times=[3]" --set output.pictures=false
 """
 
-import argparse
-import tempfile
-from pathlib import Path
-
 from mpi4py import MPI
 from mumps_3d import pressure_signs
+from timing import scene_and_out, scene_parser
 
 import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
 from fingertip_dolfinx.runner import Run
-from fingertip_dolfinx.scene import load_scene
 
 
 def main():
     import dolfinx.fem.petsc
 
-    parser = argparse.ArgumentParser(description=__doc__,
-                                     formatter_class=argparse.RawTextHelpFormatter)
-    parser.add_argument("--scene", default="line-load")
-    parser.add_argument("--set", dest="overrides", action="append", default=[])
+    parser = scene_parser(__doc__, "line-load", out=False)
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
-    scene = load_scene(args.scene, args.overrides)
-    out = Path(comm.bcast(tempfile.mkdtemp() if comm.rank == 0 else None))
+    scene, out = scene_and_out(args, comm)
     job = Run(scene, out, comm, resume=False, progress=False)
     job.run()
     problem, nonlinear = job.problem, job.stepper.nonlinear

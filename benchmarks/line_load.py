@@ -69,34 +69,27 @@ accuracy.json` scores the key outputs against an accuracy study's reference.
     .venv/bin/mpiexec -n 2 .venv/bin/python benchmarks/line_load.py
 """
 
-import argparse
 import json
 import os
-import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
-from timing import tally
+from timing import scene_and_out, scene_parser, tally
 
 import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
 from fingertip_dolfinx.keys import KEYS, key_outputs, relative_errors
 from fingertip_dolfinx.outputs import read_csv
 from fingertip_dolfinx.runner import Run
-from fingertip_dolfinx.scene import load_scene
 
 EVENTS = {"residual": "SNESFunctionEval", "jacobian": "SNESJacobianEval",
           "factorisation": "MatLUFactorNum", "solve": "KSPSolve", "triangular": "MatSolve"}
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__,
-                                     formatter_class=argparse.RawTextHelpFormatter)
-    parser.add_argument("--scene", default="line-load")
-    parser.add_argument("--set", dest="overrides", action="append", default=[])
-    parser.add_argument("--out", type=Path, default=None, help="keep the results here")
+    parser = scene_parser(__doc__, "line-load")
     parser.add_argument("--newton", action="store_true",
                         help="print each Newton iteration's residual norm and contact points "
                              "(active, and entered or left since the last iterate), then "
@@ -107,8 +100,7 @@ def main():
                              "adaptivity/check-line-load-full/accuracy.json")
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
-    scene = load_scene(args.scene, args.overrides)
-    out = args.out or Path(comm.bcast(tempfile.mkdtemp() if comm.rank == 0 else None))
+    scene, out = scene_and_out(args, comm)
 
     PETSc.Log.begin()
     started, cpu = time.perf_counter(), time.process_time()

@@ -19,18 +19,16 @@ Wall seconds on rank 0 and CPU seconds per rank (the machine is shared: compare 
 Configurations (PETSc options under the KSP's prefix): `CONFIGS`.
 """
 
-import argparse
 import os
-import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 from fingertip_3d import smooth_state
 from mpi4py import MPI
+from timing import scene_and_out, scene_parser
 
 import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
-from fingertip_dolfinx.scene import load_scene
 
 #: MUMPS options (without `mat_mumps_`) per configuration. ICNTL(7): the sequential ordering
 #: (7 automatic, 3 SCOTCH, 4 PORD, 5 METIS); ICNTL(28) = 2 with ICNTL(29) (1 PT-SCOTCH,
@@ -62,10 +60,7 @@ SYMMETRIC = {"ldlt", "ldlt-compressed", "ldlt-nopivot"}
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__,
-                                     formatter_class=argparse.RawTextHelpFormatter)
-    parser.add_argument("--scene", default="line-load-3d")
-    parser.add_argument("--set", dest="overrides", action="append", default=[])
+    parser = scene_parser(__doc__, "line-load-3d", out=False)
     parser.add_argument("--only", nargs="+", default=list(CONFIGS), choices=list(CONFIGS))
     parser.add_argument("--refactor", type=int, default=2,
                         help="numerical factorisations timed per configuration")
@@ -75,8 +70,7 @@ def main():
                         "term's derivative makes S J unsymmetric)")
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
-    scene = load_scene(args.scene, args.overrides)
-    out = Path(comm.bcast(tempfile.mkdtemp() if comm.rank == 0 else None))
+    scene, out = scene_and_out(args, comm)
     J, b, assemble, signs = jacobian_at_smooth_state(scene, out, args.pressure)
     reference = None
     if comm.rank == 0:

@@ -16,18 +16,15 @@ and Krylov iterations, CPU seconds and peak memory per rank, and the force.
 The scene is the 3D line load's first step (0.025 mm in 0.025 s) unless --set says otherwise.
 """
 
-import argparse
 import resource
-import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
+from timing import scene_and_out, scene_parser
 
 import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
 from fingertip_dolfinx.runner import run_scene
-from fingertip_dolfinx.scene import load_scene
 from fingertip_dolfinx.stepping.stepper import TimeStepper
 
 FIRST_STEP = ["solver.linear=iterative", "protocol.depth=0.025", "protocol.ramp_time=0.025",
@@ -73,14 +70,10 @@ def monitor(stepper: TimeStepper, comm) -> None:
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__,
-                                     formatter_class=argparse.RawTextHelpFormatter)
-    parser.add_argument("--scene", default="line-load-3d")
-    parser.add_argument("--set", dest="overrides", action="append", default=[])
+    parser = scene_parser(__doc__, "line-load-3d", out=False)
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
-    scene = load_scene(args.scene, [*FIRST_STEP, *args.overrides])
-    out = Path(comm.bcast(tempfile.mkdtemp() if comm.rank == 0 else None))
+    scene, out = scene_and_out(args, comm, [*FIRST_STEP, *args.overrides])
     init = TimeStepper.__init__
 
     def init_and_watch(self, *a, **k):

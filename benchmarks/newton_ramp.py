@@ -22,13 +22,11 @@ this), so a looser tolerance must still be confirmed by a run.
         --set protocol.end_time=1.0 --set "output.times=[1.0]" --set output.pictures=false
 """
 
-import argparse
-import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
+from timing import scene_and_out, scene_parser
 
 import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
 
@@ -37,7 +35,6 @@ import basix
 from dolfinx import fem
 
 from fingertip_dolfinx.runner import Run
-from fingertip_dolfinx.scene import load_scene
 
 TOLERANCES = (1e-5, 1e-6, 1e-7)  # N: candidate snes_atol (the force ~1e-2 N at 1 s)
 NEAR = 0.05  # mm: points within this gap of contact count as the edge's
@@ -116,15 +113,10 @@ class IterateLog:
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__,
-                                     formatter_class=argparse.RawTextHelpFormatter)
-    parser.add_argument("--scene", default="line-load-3d")
-    parser.add_argument("--set", dest="overrides", action="append", default=[])
-    parser.add_argument("--out", type=Path, default=None, help="keep the results here")
+    parser = scene_parser(__doc__, "line-load-3d")
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
-    scene = load_scene(args.scene, args.overrides)
-    out = args.out or Path(comm.bcast(tempfile.mkdtemp() if comm.rank == 0 else None))
+    scene, out = scene_and_out(args, comm)
     started, cpu = time.perf_counter(), time.process_time()
     job = Run(scene, out, comm, resume=False, progress=False)
     IterateLog(job)

@@ -15,37 +15,29 @@ Outputs that cost time per step and do not enter the numbers (fields for ParaVie
 are off unless `--set output.fields=every-step --set output.field_every=1` etc. asks for them.
 """
 
-import argparse
 import cmath
 import math
-import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
+from timing import scene_and_out, scene_parser
 
 import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
 from fingertip_dolfinx.outputs import read_csv
 from fingertip_dolfinx.runner import run_scene
-from fingertip_dolfinx.scene import load_scene
 from fingertip_dolfinx.studies.signals import steady_state
 
 QUIET = ["output.field_every=100000", "output.pictures=false"]
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__,
-                                     formatter_class=argparse.RawTextHelpFormatter)
-    parser.add_argument("--scene", default="vibrotactile")
-    parser.add_argument("--set", dest="overrides", action="append", default=[])
+    parser = scene_parser(__doc__, "vibrotactile")
     parser.add_argument("--periods", type=float, default=3.0, help="periods fitted (the last)")
-    parser.add_argument("--out", type=Path, default=None, help="keep the results here")
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
-    scene = load_scene(args.scene, QUIET + args.overrides)
+    scene, out = scene_and_out(args, comm, QUIET + args.overrides)
     history = scene.history
-    out = args.out or Path(comm.bcast(tempfile.mkdtemp() if comm.rank == 0 else None))
 
     started = time.perf_counter()
     summary = run_scene(scene, out, progress=False)

@@ -228,12 +228,19 @@ class CheckpointState:
 class Checkpoint:
     """One .npz per rank in `out/checkpoint/`, replaced atomically after every step, and the
     scene's record `scene.json` beside them, written when the run starts: a resume is
-    checked against it (`check_resume`), so the files never mix two experiments."""
+    checked against it (`check_resume`), so the files never mix two experiments.
+
+    Each rank replaces its own file, so a kill without a clean stop (a second Ctrl-C, SIGKILL
+    after a batch system's grace time) can land when some ranks hold step n + 1 and others
+    step n; resuming from such files would mix two states (measured: the ranks then wait on
+    each other for ever). Each rank therefore keeps its step before as `rank<r>.previous.npz`,
+    and a resume continues from the latest step that every rank holds (`common_time`)."""
 
     def __init__(self, out: Path, comm: MPI.Comm):
         self.out, self.comm = Path(out), comm
         self.folder = self.out / "checkpoint"
         self.path = self.folder / f"rank{comm.rank}.npz"
+        self.previous = self.folder / f"rank{comm.rank}.previous.npz"
 
     def start(self, record: dict) -> None:
         """A fresh run: the checkpoints of an earlier run in this folder go, the record of
@@ -250,38 +257,63 @@ class Checkpoint:
         self.comm.barrier()
 
     def stored(self) -> tuple[dict, float]:
-        """(the record of the run in `out`, the time of its last checkpoint); every rank."""
+        """(the record of the run in `out`, the time of the latest checkpoint that every rank
+        holds); every rank."""
         where = f"--resume {self.out}"
-        found = None
+        held = self.comm.allgather(list(self._held().values()))
+        t, found = common_time(held), None
         if self.comm.rank == 0:
             record, state = self.folder / "scene.json", self.folder / "rank0.npz"
-            if record.exists() and state.exists():
-                with np.load(state) as data:
-                    found = json.loads(record.read_text()), float(data["time"])
+            if record.exists() and any(held):
+                found = json.loads(record.read_text())
             else:
-                found = state if not state.exists() else record
+                found = record if any(held) else state
         found = self.comm.bcast(found, root=0)
         if isinstance(found, Path):
             older = " (a run older than the record kept)" if found.name == "scene.json" else ""
             raise InputError(where, f"there is no checkpoint to resume from ({found} is "
                              f"missing{older}).", "run without --resume to start afresh.")
-        return found
+        ranks = sum(1 for times in held if times)
+        if t is None and ranks < self.comm.size:
+            raise InputError(where, f"only {ranks} of the {self.comm.size} ranks have a "
+                             f"checkpoint in {self.folder}.",
+                             f"resume with mpiexec -n {ranks} (the ranks the run was made on).")
+        if t is None:
+            raise InputError(where, f"the ranks' checkpoints in {self.folder} hold no step in "
+                             "common (a kill while they were written).",
+                             "run without --resume to start afresh.")
+        return found, t
+
+    def _held(self) -> dict[Path, float]:
+        """This rank's checkpoint files and their times (the last step's, the one before)."""
+        held = {}
+        for path in (self.path, self.previous):
+            if path.exists():
+                with np.load(path) as data:
+                    held[path] = float(data["time"])
+        return held
 
     def save(self, time: float, dt: float, steps: int, state: dict[str, np.ndarray],
              previous: tuple[float, list[np.ndarray]]) -> None:
         previous_time, arrays = previous
-        with whole(self.path) as tmp, tmp.open("wb") as f:
-            np.savez(f, time=time, dt=dt, steps=steps, ranks=self.comm.size,
-                     previous_time=previous_time, **state,
-                     **{f"previous_{i}": a for i, a in enumerate(arrays)})
+        with whole(self.path) as tmp:
+            with tmp.open("wb") as f:
+                np.savez(f, time=time, dt=dt, steps=steps, ranks=self.comm.size,
+                         previous_time=previous_time, **state,
+                         **{f"previous_{i}": a for i, a in enumerate(arrays)})
+            if self.path.exists():  # kept until this step's file is whole on every rank
+                os.replace(self.path, self.previous)
 
     def load(self, state: dict[str, np.ndarray], n_unknowns: int) -> CheckpointState:
         """Fill the arrays of `state` in place; a checkpoint of another run is refused."""
         where = f"--resume {self.out}"
-        if not self.path.exists():
+        held = self._held()
+        t = common_time(self.comm.allgather(list(held.values())))
+        path = next((p for p, s in held.items() if t is not None and abs(s - t) <= 1e-12), None)
+        if path is None:
             raise InputError(where, f"there is no checkpoint to resume from ({self.path}).",
                              "run without --resume to start afresh.")
-        data = np.load(self.path)
+        data = np.load(path)
         if int(data["ranks"]) != self.comm.size:
             raise InputError(where, f"the run was made on {int(data['ranks'])} ranks, this one "
                              f"has {self.comm.size}.",
@@ -295,6 +327,13 @@ class Checkpoint:
                     [data[f"previous_{i}"] for i in range(n_unknowns)])
         return CheckpointState(float(data["time"]), float(data["dt"]), int(data["steps"]),
                                previous)
+
+
+def common_time(held: list[list[float]]) -> float | None:
+    """The latest checkpoint time that every rank holds (`held`: each rank's times), or None."""
+    shared = [t for t in held[0] if all(any(abs(t - s) <= 1e-12 for s in times)
+                                        for times in held[1:])]
+    return max(shared, default=None)
 
 
 #: Keys a resumed scene may change freely: what is drawn and how often fields are written,

@@ -21,7 +21,7 @@ from mpi4py import MPI
 
 from fingertip_dolfinx.cli import main
 from fingertip_dolfinx.errors import InputError, RunInterrupted
-from fingertip_dolfinx.outputs import check_resume, read_csv
+from fingertip_dolfinx.outputs import Checkpoint, check_resume, read_csv
 from fingertip_dolfinx.runner import Run, run_scene
 from fingertip_dolfinx.scene import load_scene, scene_record
 from fingertip_dolfinx.stepping.stepper import TimeStepper
@@ -86,6 +86,47 @@ def test_a_resume_that_changes_the_physics_is_refused_and_the_record_left_alone(
     assert "already complete" in capsys.readouterr().err
     assert summary.read_bytes() == before and summary.stat().st_mtime_ns == stamp
     assert json.loads(before)["status"] == "completed"
+
+
+class _RankZeroOfTwo:
+    """Rank 0 of two ranks, the other of which holds checkpoints of the times `other`."""
+
+    rank, size = 0, 2
+
+    def __init__(self, other: list[float]):
+        self.other = other
+
+    def allgather(self, mine):
+        return [mine, self.other]
+
+    def bcast(self, value, root=0):
+        return value
+
+
+def test_a_kill_between_the_ranks_checkpoints_resumes_from_the_step_all_hold(tmp_path):
+    """A kill (SIGKILL, a second Ctrl-C) while the ranks replace their checkpoints: rank 0
+    holds step 2, the other rank still step 1. The resume continues every rank from step 1
+    (rank 0's step before, kept), never from two states (measured: the ranks then wait on
+    each other for ever); with no step in common it is refused."""
+    comm = _RankZeroOfTwo(other=[0.1])
+    checkpoint = Checkpoint(tmp_path, comm)
+    checkpoint.folder.mkdir()
+    (checkpoint.folder / "scene.json").write_text("{}")
+    for step, t in ((1, 0.1), (2, 0.2)):
+        checkpoint.save(t, 0.1, step, {"u": np.full(3, t)}, (t - 0.1, [np.full(3, t - 0.1)]))
+    assert checkpoint.stored() == ({}, 0.1)
+    u = np.zeros(3)
+    state = checkpoint.load({"u": u}, 1)
+    assert (state.time, state.steps, state.previous[0]) == (0.1, 1, 0.0)
+    np.testing.assert_array_equal(u, 0.1)
+    checkpoint.path.unlink()  # killed between its two renames: the step before is whole
+    assert checkpoint.stored() == ({}, 0.1)
+    comm.other = [0.3]
+    with pytest.raises(InputError, match="no step in common"):
+        checkpoint.stored()
+    comm.other = []  # a run of one rank resumed on two
+    with pytest.raises(InputError, match="resume with mpiexec -n 1"):
+        checkpoint.stored()
 
 
 def test_what_a_resume_may_change():
@@ -240,7 +281,8 @@ def test_a_signal_within_a_step_stops_its_newton_solve_and_resume_finishes_it(
 def _interrupt(out: Path, ranks: int, sig: signal.Signals) -> subprocess.CompletedProcess:
     """`fingertip run` (under mpiexec with ranks > 1) into `out`, sent `sig` once its
     history.csv has two rows: to mpiexec for SIGINT (it passes Ctrl-C on to the ranks), to
-    every process for SIGTERM (as a batch system does)."""
+    the process group for SIGTERM (Hydra's mpiexec is alone in it, the ranks have sessions of
+    their own: it passes SIGTERM on to them too; docs/guide/mpi.md)."""
     launch = [str(BIN / "mpiexec"), "-n", str(ranks)] if ranks > 1 else []
     command = [*launch, sys.executable, "-m", "fingertip_dolfinx.cli", *ARGS, "--out", str(out)]
     env = dict(os.environ, PYTHONPATH=str(REPO))
