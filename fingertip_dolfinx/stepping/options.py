@@ -118,6 +118,14 @@ class StepOptions:
     #: (`hold_growth`; the 3D line load: 81 factorisations instead of 78, off there).
     #: docs/benchmarks/solvers-3d.md, "Keeping the factorisation across steps".
     jacobian_carry: int = 0
+    #: Keep the LU factorisation of an older Jacobian as the preconditioner of GMRES, which
+    #: solves each Newton iteration's system with the Jacobian assembled fresh (Newton keeps
+    #: its exact-Jacobian convergence), while GMRES needs at most this many iterations; a
+    #: solve that needs more, or fails, has the next Jacobian factorised anew (0: off, a
+    #: factorisation per Jacobian). Pays where a triangular solve is cheap against a
+    #: factorisation (3D: 1/30), not in 2D (1/9). Direct route only (`[solver] linear`).
+    #: stepping.FactorReuse; docs/benchmarks/solvers-3d.md.
+    factor_reuse: int = 0
     #: "iterations": grow by `growth` after easy steps. "error": steps chosen by their
     #: estimated local time-integration error (rtol, atol); `growth` is then the largest
     #: factor from one step to the next.
@@ -159,6 +167,7 @@ class StepOptions:
         if not 0.0 <= self.jacobian_reuse < 1.0:
             raise ValueError(f"need 0 <= jacobian_reuse < 1, got {self.jacobian_reuse}")
         self._check_carry()
+        self._check_factor_reuse()
         if not 0.0 <= self.rho_inf <= 1.0:
             raise ValueError(f"need 0 <= rho_inf <= 1, got {self.rho_inf}")
         if isinstance(self.steps_per_period, bool) or not (
@@ -188,6 +197,23 @@ class StepOptions:
                              "whose threshold judges the kept Jacobian (without it, one that "
                              "stops contracting would never be reassembled).",
                              "set jacobian_reuse too (e.g. 0.05), or jacobian_carry = 0.")
+
+    def _check_factor_reuse(self) -> None:
+        """`factor_reuse`: a whole number of Krylov iterations (0: off)."""
+        limit = self.factor_reuse
+        if isinstance(limit, bool) or not isinstance(limit, int) or limit < 0:
+            raise InputError("factor_reuse", f"must be a whole number of Krylov iterations "
+                             f">= 0, got {limit!r}.",
+                             "write e.g. factor_reuse = 15 (0: off).")
+
+
+def check_factor_reuse(limit: int, linear: str, where: str = "steps.factor_reuse") -> None:
+    """A kept factorisation is the direct route's LU: the iterative route has its own
+    preconditioner (and its own reuse options)."""
+    if limit > 0 and linear != "direct":
+        raise InputError(where, f"keeps the direct route's LU factorisation, but the linear "
+                         f"solver is {linear!r}.",
+                         'use factor_reuse = 0 with linear = "iterative", or linear = "direct".')
 
 
 @dataclass
