@@ -228,7 +228,7 @@ class Scene:
     def __post_init__(self):
         self.indenters = list(self.indenters)
         check_linear(self.linear, f"{self.name}: solver.linear")
-        check_factor_reuse(self.steps.factor_reuse, self.linear,
+        check_factor_reuse(self.steps.factor_reuse, self.linear, self.petsc_options,
                            f"{self.name}: steps.factor_reuse")
         if not self.indenters:
             raise InputError(f"{self.name}: indenters", "no indenter given.",

@@ -259,13 +259,16 @@ def test_factor_reuse_refuses_what_is_no_count_of_iterations(value):
     assert "factor_reuse" in error.value.where
 
 
-def test_factor_reuse_is_refused_on_the_iterative_route():
-    """The kept factorisation is the direct route's LU: the iterative route has none."""
+@pytest.mark.parametrize("solver, word", [("solver.linear=iterative", "iterative"),
+                                          ("solver.snes_ksp_ew=true", "snes_ksp_ew")])
+def test_factor_reuse_is_refused_where_it_would_not_solve_exactly(solver, word):
+    """The kept factorisation is the direct route's LU (the iterative route has none), and its
+    solves are exact: inexact Newton's tolerance would be lost with the KSP's pre-solve hook."""
     from fingertip_dolfinx.errors import InputError
     from fingertip_dolfinx.scene import load_scene
 
-    with pytest.raises(InputError, match="iterative") as error:
-        load_scene("line-load", ["steps.factor_reuse=15", "solver.linear=iterative"])
+    with pytest.raises(InputError, match=word) as error:
+        load_scene("line-load", ["steps.factor_reuse=15", solver])
     assert error.value.where.endswith("steps.factor_reuse")
 
 

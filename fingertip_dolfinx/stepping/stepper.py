@@ -169,10 +169,10 @@ class TimeStepper:
         self.linear = LinearSolver(linear, problem)
         newton = {k: v for k, v in DEFAULT_PETSC_OPTIONS.items() if k not in DIRECT_OPTIONS}
         limit = self.options.factor_reuse
-        check_factor_reuse(limit, linear)
         kept = kept_factor_options(limit) if limit > 0 else {}
         opts = {**newton, **self.linear.options, **kept,
                 **check_petsc_options(petsc_options or {}, "petsc_options")}
+        check_factor_reuse(limit, linear, opts)
         # One NonlinearProblem for the whole run: its forms are compiled here, once.
         self.nonlinear = dolfinx.fem.petsc.NonlinearProblem(
             problem.residuals,
