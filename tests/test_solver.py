@@ -230,7 +230,8 @@ def _relaxing_column(limit: int, prefix: str):
 def test_factor_reuse_keeps_newton_and_its_answers_with_fewer_factorisations(limit):
     """StepOptions.factor_reuse solves each Newton iteration's system, with the Jacobian
     assembled fresh, by GMRES preconditioned by the LU factors of an older Jacobian; a solve
-    still short of the tolerance after `limit` iterations is finished with a new factorisation.
+    still short of the tolerance after 2 x `limit` iterations is finished with a new
+    factorisation, and one that took more than `limit` has the next Jacobian factorised.
     Newton's convergence is the exact Jacobian's: the same steps, in the same Newton iterations
     per step, reach the same reactions to far below Newton's tolerance (a residual 1e-12 of
     the first; GMRES solves to 1e-10: 1e-8 leaves room for the conditioning), while MUMPS
@@ -245,9 +246,10 @@ def test_factor_reuse_keeps_newton_and_its_answers_with_fewer_factorisations(lim
     assert np.max(np.abs(kept_force - plain_force)) < 1e-8 * np.max(np.abs(plain_force))
     assert plain_lu == sum(r.newton_iterations for r in plain)
     factor = stepper.factor
-    assert kept_lu == factor.factorisations and factor.kept > 0 and factor.fallbacks > 0
+    assert kept_lu == factor.factorisations and factor.kept > 0
+    assert factor.fallbacks > 0 or limit == 10  # a limit of 2 needs the fallback
     assert kept_lu < (0.2 if limit == 10 else 0.9) * plain_lu
-    assert all(r.linear_iterations <= limit * r.newton_iterations for r in kept)
+    assert all(r.linear_iterations <= 2 * limit * r.newton_iterations for r in kept)
 
 
 @pytest.mark.parametrize("value", [-1, 2.5, True, "15"])

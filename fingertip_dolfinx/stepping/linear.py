@@ -97,11 +97,12 @@ def kept_factor_options(limit: int) -> dict:
     right-preconditioned by the LU (MUMPS) of an older one, so that its tolerance is on the
     true residual; with fresh factors it converges in one iteration. The solve is as exact as
     the iterative route's exact solves (KSP_RTOL): Newton keeps its iterates and its answer.
-    At most `limit` iterations, without restart: FactorReuse then finishes the solve with a
-    fresh factorisation."""
+    At most 2 × `limit` iterations, without restart: FactorReuse then finishes the solve with
+    a fresh factorisation."""
+    most = 2 * limit
     return {"ksp_type": "gmres", "ksp_pc_side": "right", "ksp_norm_type": "unpreconditioned",
-            "ksp_rtol": KSP_RTOL, "ksp_atol": _KRYLOV["ksp_atol"], "ksp_max_it": limit,
-            "ksp_gmres_restart": limit, "ksp_gmres_cgs_refinement_type": "refine_ifneeded",
+            "ksp_rtol": KSP_RTOL, "ksp_atol": _KRYLOV["ksp_atol"], "ksp_max_it": most,
+            "ksp_gmres_restart": most, "ksp_gmres_cgs_refinement_type": "refine_ifneeded",
             "ksp_error_if_not_converged": False}
 
 

@@ -685,15 +685,16 @@ class FactorReuse:
     solves every Newton iteration's system with the Jacobian assembled fresh.
 
     An iteration then costs an assembly, a residual and k GMRES iterations (a pair of
-    triangular solves and a mat-vec each) instead of a factorisation. A solve that has not
-    converged after `limit` iterations (k grows as the Jacobian moves away from the factored
-    one: the contact set grows, Δt changes the Darcy term) is finished at once by factorising
-    the Jacobian being solved and solving with the new factors, which are kept from then on:
-    every Newton iteration gets an exact solve (to GMRES's 1e-10, or LU's own), so Newton's
-    iterates, and its answers, are the direct route's. A Newton solve after a failed one
-    starts with a fresh factorisation (`start`). `limit` should be well below the
-    factorisation's cost in iterations (3D line load, 2 ranks: 4.2 s against ~0.15 s, ~28):
-    the last `limit` iterations before each refactorisation are spent in vain.
+    triangular solves and a mat-vec each) instead of a factorisation. k grows as the Jacobian
+    moves away from the factored one (the contact set grows, the tissues stiffen, Δt changes
+    the Darcy term): after a solve of more than `limit` iterations the next Jacobian is
+    factorised; a solve that has not converged after 2 × `limit` (GMRES's cap,
+    linear.kept_factor_options) is finished at once by factorising the Jacobian being solved
+    and solving with the new factors, which are kept from then on. Every Newton iteration
+    gets an exact solve (to GMRES's 1e-10, or LU's own), so Newton's iterates, and its
+    answers, are the direct route's. A Newton solve after a failed one starts with a fresh
+    factorisation (`start`). `limit` should be below the factorisation's cost in iterations
+    (3D line load, 2 ranks: 4.2 s against ~0.12 s, ~35).
 
     The hooks are the KSP's pre- and post-solve (KSPSetPreSolve, KSPSetPostSolve). The first
     runs after SNES has set the reuse flag from its own preconditioner lag, before the PC is
@@ -711,15 +712,16 @@ class FactorReuse:
         self.factorisations = self.fallbacks = 0
         #: Solves preconditioned by the factors of an older matrix than the one solved.
         self.kept = 0
-        self._fresh, self._state = True, None
+        self._fresh, self._state, self._last = True, None, 0
         ksp = snes.getKSP()
         self._pc = ksp.getPC()
         ksp.setPreSolve(self._presolve)
         ksp.setPostSolve(self._postsolve)
 
     def _presolve(self, ksp: PETSc.KSP, b: PETSc.Vec, x: PETSc.Vec) -> None:
-        self._pc.setReusePreconditioner(not self._fresh)
-        if self._fresh:
+        renew = self._fresh or self._last > self.limit
+        self._pc.setReusePreconditioner(not renew)
+        if renew:
             self._factored(ksp)
         elif ksp.getOperators()[1].stateGet() != self._state:
             self.kept += 1
@@ -736,7 +738,7 @@ class FactorReuse:
     def _postsolve(self, ksp: PETSc.KSP, b: PETSc.Vec, x: PETSc.Vec) -> None:
         """A solve that stopped short of the tolerance (not one that met a NaN: SNES fails
         that step) is redone directly with the factors of the matrix being solved."""
-        reason = ksp.getConvergedReason()
+        reason, self._last = ksp.getConvergedReason(), ksp.getIterationNumber()
         if reason >= 0 or reason == PETSc.KSP.ConvergedReason.DIVERGED_NANORINF:
             return
         self._pc.setReusePreconditioner(False)
@@ -747,6 +749,7 @@ class FactorReuse:
             return  # the factorisation failed: so does the solve, and SNES's step
         self._pc.apply(b, x)
         ksp.setConvergedReason(PETSc.KSP.ConvergedReason.CONVERGED_ITS)
+        self._last = 0  # the new factors are the solved matrix's
 
     def start(self, fresh: bool = False) -> None:
         """A Newton solve starts; with `fresh`, from a new factorisation."""
