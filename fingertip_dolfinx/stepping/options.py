@@ -119,12 +119,16 @@ class StepOptions:
     #: docs/benchmarks/solvers-3d.md, "Keeping the factorisation across steps".
     jacobian_carry: int = 0
     #: Keep the LU factorisation of an older Jacobian as the preconditioner of GMRES, which
-    #: solves each Newton iteration's system with the Jacobian assembled fresh (Newton keeps
-    #: its exact-Jacobian convergence), while GMRES needs at most this many iterations; a
-    #: solve that needs more, or fails, has the next Jacobian factorised anew (0: off, a
-    #: factorisation per Jacobian). Pays where a triangular solve is cheap against a
-    #: factorisation (3D: 1/30), not in 2D (1/9). Direct route only (`[solver] linear`).
-    #: stepping.FactorReuse; docs/benchmarks/solvers-3d.md.
+    #: solves each Newton iteration's system (to 1e-10) with the Jacobian assembled fresh, so
+    #: Newton keeps its exact-Jacobian iterates; a solve of more than this many iterations has
+    #: the next Jacobian factorised, one not converged in twice as many is finished with a
+    #: fresh factorisation (0: off, a factorisation per Jacobian). Direct route only (`[solver]
+    #: linear`), without `snes_ksp_ew`. Pays where Newton's Jacobians change little between
+    #: factorisations (a steady hold: 4 factorisations for 31 iterations on a relaxing column);
+    #: not on the line loads, whose Jacobians change enough between Newton iterations that a
+    #: one-iteration-old factor needs 14-30 GMRES iterations: line-load-3d 42 factorisations
+    #: instead of 78 for 1 359 GMRES iterations, the same cost; 2D slower (a triangular solve
+    #: is 1/4 of a factorisation there). stepping.FactorReuse; docs/benchmarks/solvers-3d.md.
     factor_reuse: int = 0
     #: "iterations": grow by `growth` after easy steps. "error": steps chosen by their
     #: estimated local time-integration error (rtol, atol); `growth` is then the largest
