@@ -15,7 +15,10 @@ Why the ratio stays near 6 on the line load (measured, 2026-11-23; counts from P
 - A kept LU as preconditioner of GMRES on the fresh Jacobian (snes_lag_preconditioner 5 and
   20, persisting across steps) needed 8.4 and 16 Krylov iterations per solve: in 2D a MUMPS
   triangular solve costs 1/9 of a factorisation, so 36 (or 9) factorisations instead of 179
-  saved nothing (stepping +2 % and +16 %). A kept Jacobian (chord steps) pays only in the
+  saved nothing (stepping +2 % and +16 %); steps.factor_reuse (2026-11-27: the kept LU with
+  a fresh factorisation after a slow solve, exact solves) on line-load-1pct: 29-72 instead of
+  83 factorisations, stepping CPU 5.3-5.5x the bound against 4.5x (docs/benchmarks/
+  solvers-3d.md). A kept Jacobian (chord steps) pays only in the
   quadratic phase: steps.jacobian_reuse = 0.02 (the scene's) -17 factorisations; looser
   thresholds lengthen the ramp (stepping.JacobianReuse).
 - Line searches: basic (full steps) 37 steps, 3 cuts, 180 factorisations; l2 160

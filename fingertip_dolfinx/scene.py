@@ -33,7 +33,12 @@ from .loading import KINDS, LoadHistory, TangentialPath, check_tangential_path, 
 from .model import ModelOptions
 from .physics.friction import check_dynamic_contact
 from .physics.tissues import DEFAULT_SET, WU2004, Tissues, load_materials
-from .stepping.options import StepOptions, check_linear, check_petsc_options
+from .stepping.options import (
+    StepOptions,
+    check_factor_reuse,
+    check_linear,
+    check_petsc_options,
+)
 from .validation import check_keys, positive
 
 #: The built-in scenes (inside the package: `fingertip_dolfinx/data/scenes/`).
@@ -223,6 +228,8 @@ class Scene:
     def __post_init__(self):
         self.indenters = list(self.indenters)
         check_linear(self.linear, f"{self.name}: solver.linear")
+        check_factor_reuse(self.steps.factor_reuse, self.linear, self.petsc_options,
+                           f"{self.name}: steps.factor_reuse")
         if not self.indenters:
             raise InputError(f"{self.name}: indenters", "no indenter given.",
                              "add an [[indenters]] table.")
@@ -816,10 +823,11 @@ def scene_record(scene: Scene) -> dict:
 
 
 def _steps_record(steps) -> dict:
-    """The `[steps]` table; `tangent_start` and `jacobian_carry` only where they are on (a
-    scene without them has the record it had before the options existed: its runs resume)."""
+    """The `[steps]` table; `tangent_start`, `jacobian_carry` and `factor_reuse` only where they
+    are on (a scene without them has the record it had before the options existed: its runs
+    resume)."""
     table = dataclasses.asdict(steps)
-    for key in ("tangent_start", "jacobian_carry"):
+    for key in ("tangent_start", "jacobian_carry", "factor_reuse"):
         if not table[key]:
             del table[key]
     return table

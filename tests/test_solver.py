@@ -203,6 +203,77 @@ def test_jacobian_carry_is_refused_from_a_scene_naming_the_table():
     assert error.value.where.endswith("steps.jacobian_carry=3\": jacobian_carry")
 
 
+def _relaxing_column(limit: int, prefix: str):
+    """The held column of `_held_column` (its Jacobian's Darcy block changes with the steps,
+    x3 each in the hold) with the LU factorisation kept as GMRES's preconditioner
+    (StepOptions.factor_reuse = `limit`, 0: off): its reports, reactions, stepper and the
+    MUMPS numerical factorisations it did (PETSc's MatLUFactorNum events)."""
+    from petsc4py import PETSc
+
+    PETSc.Log.begin()
+    event = PETSc.Log.Event("MatLUFactorNum")
+    history = RampHold(0.01, 0.1, 30.0)
+    column = ConfinedBlock(1, 8, history, tissue=mat.SUBCUTANEOUS_BIPHASIC, width=0.1,
+                           drained_top=True, top_displacement=True)
+    options = StepOptions(dt_initial=0.025, dt_max=30.0, growth=1.0, hold_growth=3.0,
+                          factor_reuse=limit)
+    stepper = TimeStepper(column, options, TIGHT, prefix=prefix)
+    before = event.getPerfInfo()["count"]
+    reports = stepper.run(history, history.end_time)
+    factorisations = event.getPerfInfo()["count"] - before
+    stepper.close()
+    return reports, np.array([r.diagnostics["reaction"] for r in reports]), stepper, \
+        factorisations
+
+
+@pytest.mark.parametrize("limit", [2, 10])
+def test_factor_reuse_keeps_newton_and_its_answers_with_fewer_factorisations(limit):
+    """StepOptions.factor_reuse solves each Newton iteration's system, with the Jacobian
+    assembled fresh, by GMRES preconditioned by the LU factors of an older Jacobian; a solve
+    still short of the tolerance after 2 x `limit` iterations is finished with a new
+    factorisation, and one that took more than `limit` has the next Jacobian factorised.
+    Newton's convergence is the exact Jacobian's: the same steps, in the same Newton iterations
+    per step, reach the same reactions to far below Newton's tolerance (a residual 1e-12 of
+    the first; GMRES solves to 1e-10: 1e-8 leaves room for the conditioning), while MUMPS
+    factorises fewer matrices (one per Newton iteration without it): with a limit of 10,
+    fewer than a fifth, the factors kept across the hold's steps although each changes the
+    Darcy block by x3; with 2, most solves need the new factorisation, and still fewer."""
+    plain, plain_force, plain_stepper, plain_lu = _relaxing_column(0, "kf0_")
+    kept, kept_force, stepper, kept_lu = _relaxing_column(limit, f"kf{limit}_")
+    assert plain_stepper.factor is None and len(plain) >= 8
+    assert [r.time for r in kept] == [r.time for r in plain]
+    assert [r.newton_iterations for r in kept] == [r.newton_iterations for r in plain]
+    assert np.max(np.abs(kept_force - plain_force)) < 1e-8 * np.max(np.abs(plain_force))
+    assert plain_lu == sum(r.newton_iterations for r in plain)
+    factor = stepper.factor
+    assert kept_lu == factor.factorisations and factor.kept > 0
+    assert factor.fallbacks > 0 or limit == 10  # a limit of 2 needs the fallback
+    assert kept_lu < (0.2 if limit == 10 else 0.9) * plain_lu
+    assert all(r.linear_iterations <= 2 * limit * r.newton_iterations for r in kept)
+
+
+@pytest.mark.parametrize("value", [-1, 2.5, True, "15"])
+def test_factor_reuse_refuses_what_is_no_count_of_iterations(value):
+    from fingertip_dolfinx.errors import InputError
+
+    with pytest.raises(InputError, match="whole number") as error:
+        StepOptions(factor_reuse=value)
+    assert "factor_reuse" in error.value.where
+
+
+@pytest.mark.parametrize("solver, word", [("solver.linear=iterative", "iterative"),
+                                          ("solver.snes_ksp_ew=true", "snes_ksp_ew")])
+def test_factor_reuse_is_refused_where_it_would_not_solve_exactly(solver, word):
+    """The kept factorisation is the direct route's LU (the iterative route has none), and its
+    solves are exact: inexact Newton's tolerance would be lost with the KSP's pre-solve hook."""
+    from fingertip_dolfinx.errors import InputError
+    from fingertip_dolfinx.scene import load_scene
+
+    with pytest.raises(InputError, match=word) as error:
+        load_scene("line-load", ["steps.factor_reuse=15", solver])
+    assert error.value.where.endswith("steps.factor_reuse")
+
+
 def test_krylov_column_counts_the_newton_iterations_it_reports(shared_tmp_path):
     """With MUMPS every Newton iteration is one linear solve of one "Krylov iteration", so the
     history's per-step Krylov count must equal its Newton count also in steps whose first

@@ -10,7 +10,8 @@ The modules, each using only those before it:
 - `tolerance`: a tolerance asked of the outputs turned into step options, and verified;
 - `diagnosis`: why a step failed, compaction or Newton's overshoot, in messages;
 - `linear`: the linear solver inside Newton (MUMPS LU, or FGMRES with a field split);
-- `stepper`: `TimeStepper`, the `Steppable` protocol a problem meets, `JacobianReuse`.
+- `stepper`: `TimeStepper`, the `Steppable` protocol a problem meets, `JacobianReuse`,
+  `FactorReuse`.
 
 The names below are imported from their module on first use, so that importing
 `fingertip_dolfinx.stepping.options` (as scene.py does) loads no PETSc.
@@ -36,7 +37,7 @@ _API = {
     **dict.fromkeys(("LinearSolver", "DIRECT_OPTIONS", "KSP_RTOL", "iterative_options",
                      "rigid_body_modes", "split_index_sets", "pressure_modulus",
                      "krylov_iterations"), "linear"),
-    **dict.fromkeys(("TimeStepper", "Steppable", "JacobianReuse"), "stepper"),
+    **dict.fromkeys(("TimeStepper", "Steppable", "JacobianReuse", "FactorReuse"), "stepper"),
 }
 __all__ = sorted(_API)
 

@@ -91,6 +91,21 @@ _KRYLOV = {
     **INEXACT_NEWTON,
 }
 
+def kept_factor_options(limit: int) -> dict:
+    """The direct route's Krylov wrapper when the LU factorisation is kept (StepOptions.
+    factor_reuse = `limit`; stepper.FactorReuse): GMRES on the Jacobian as assembled,
+    right-preconditioned by the LU (MUMPS) of an older one, so that its tolerance is on the
+    true residual; with fresh factors it converges in one iteration. The solve is as exact as
+    the iterative route's exact solves (KSP_RTOL): Newton keeps its iterates and its answer.
+    At most 2 × `limit` iterations, without restart: FactorReuse then finishes the solve with
+    a fresh factorisation."""
+    most = 2 * limit
+    return {"ksp_type": "gmres", "ksp_pc_side": "right", "ksp_norm_type": "unpreconditioned",
+            "ksp_rtol": KSP_RTOL, "ksp_atol": _KRYLOV["ksp_atol"], "ksp_max_it": most,
+            "ksp_gmres_restart": most, "ksp_gmres_cgs_refinement_type": "refine_ifneeded",
+            "ksp_error_if_not_converged": False}
+
+
 #: GAMG on the displacement block: smoothed aggregation with the rigid-body near null space,
 #: Chebyshev/Jacobi smoothing (diagonal scaling: each row sees its own stiffness, so the bone's
 #: 10⁷ larger entries do not swamp the tissue's), a square graph on the finest level. The

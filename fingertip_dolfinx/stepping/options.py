@@ -118,6 +118,18 @@ class StepOptions:
     #: (`hold_growth`; the 3D line load: 81 factorisations instead of 78, off there).
     #: docs/benchmarks/solvers-3d.md, "Keeping the factorisation across steps".
     jacobian_carry: int = 0
+    #: Keep the LU factorisation of an older Jacobian as the preconditioner of GMRES, which
+    #: solves each Newton iteration's system (to 1e-10) with the Jacobian assembled fresh, so
+    #: Newton keeps its exact-Jacobian iterates; a solve of more than this many iterations has
+    #: the next Jacobian factorised, one not converged in twice as many is finished with a
+    #: fresh factorisation (0: off, a factorisation per Jacobian). Direct route only (`[solver]
+    #: linear`), without `snes_ksp_ew`. Pays where Newton's Jacobians change little between
+    #: factorisations (a steady hold: 4 factorisations for 31 iterations on a relaxing column);
+    #: not on the line loads, whose Jacobians change enough between Newton iterations that a
+    #: one-iteration-old factor needs 14-30 GMRES iterations: line-load-3d 42 factorisations
+    #: instead of 78 for 1 359 GMRES iterations, the same cost; 2D slower (a triangular solve
+    #: is 1/4 of a factorisation there). stepping.FactorReuse; docs/benchmarks/solvers-3d.md.
+    factor_reuse: int = 0
     #: "iterations": grow by `growth` after easy steps. "error": steps chosen by their
     #: estimated local time-integration error (rtol, atol); `growth` is then the largest
     #: factor from one step to the next.
@@ -159,6 +171,7 @@ class StepOptions:
         if not 0.0 <= self.jacobian_reuse < 1.0:
             raise ValueError(f"need 0 <= jacobian_reuse < 1, got {self.jacobian_reuse}")
         self._check_carry()
+        self._check_factor_reuse()
         if not 0.0 <= self.rho_inf <= 1.0:
             raise ValueError(f"need 0 <= rho_inf <= 1, got {self.rho_inf}")
         if isinstance(self.steps_per_period, bool) or not (
@@ -188,6 +201,33 @@ class StepOptions:
                              "whose threshold judges the kept Jacobian (without it, one that "
                              "stops contracting would never be reassembled).",
                              "set jacobian_reuse too (e.g. 0.05), or jacobian_carry = 0.")
+
+    def _check_factor_reuse(self) -> None:
+        """`factor_reuse`: a whole number of Krylov iterations (0: off)."""
+        limit = self.factor_reuse
+        if isinstance(limit, bool) or not isinstance(limit, int) or limit < 0:
+            raise InputError("factor_reuse", f"must be a whole number of Krylov iterations "
+                             f">= 0, got {limit!r}.",
+                             "write e.g. factor_reuse = 15 (0: off).")
+
+
+def check_factor_reuse(limit: int, linear: str, petsc_options: dict | None = None,
+                       where: str = "steps.factor_reuse") -> None:
+    """A kept factorisation is the direct route's LU: the iterative route has its own
+    preconditioner (and its own reuse options). Its solves are exact: Eisenstat–Walker's
+    inexact Newton (`snes_ksp_ew`) sets the Krylov tolerance in the KSP's pre-solve hook,
+    which the kept factorisation's hook replaces; and inexact solves cost this contact Newton
+    iterations and cuts (2D line load, ksp_rtol 1e-6: 98 iterations and a cut against 89;
+    docs/benchmarks/solvers-3d.md)."""
+    if limit > 0 and linear != "direct":
+        raise InputError(where, f"keeps the direct route's LU factorisation, but the linear "
+                         f"solver is {linear!r}.",
+                         'use factor_reuse = 0 with linear = "iterative", or linear = "direct".')
+    ew = (petsc_options or {}).get("snes_ksp_ew", False)
+    if limit > 0 and str(ew).lower() not in ("false", "0", "no"):
+        raise InputError(where, "solves every Newton iteration to 1e-10, which inexact "
+                         "Newton (solver.snes_ksp_ew) would loosen.",
+                         "drop solver.snes_ksp_ew, or set factor_reuse = 0.")
 
 
 @dataclass
