@@ -264,10 +264,12 @@ class Checkpoint:
         t, found = common_time(held), None
         if self.comm.rank == 0:
             record, state = self.folder / "scene.json", self.folder / "rank0.npz"
-            if record.exists() and any(held):
-                found = json.loads(record.read_text())
+            if not any(held):
+                found = state
+            elif not record.exists():
+                found = record
             else:
-                found = record if any(held) else state
+                found = json.loads(record.read_text())
         found = self.comm.bcast(found, root=0)
         if isinstance(found, Path):
             older = " (a run older than the record kept)" if found.name == "scene.json" else ""

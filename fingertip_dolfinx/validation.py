@@ -42,3 +42,11 @@ def positive(where: str, value, unit: str = "") -> float:
         raise InputError(where, f"must be positive, got {x}{f' {unit}' if unit else ''}.",
                          "use a value > 0.")
     return x
+
+
+def count(where: str, value, what: str, example: str) -> int:
+    """A whole number >= 0 of `what` (a TOML boolean is not one); `example` shows the fix."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+        raise InputError(where, f"must be a whole number of {what} >= 0, got {value!r}.",
+                         f"write e.g. {example} (0: off).")
+    return value

@@ -13,6 +13,7 @@ import math
 from dataclasses import asdict, dataclass, field
 
 from ..errors import InputError
+from ..validation import count
 
 #: Newton with a backtracking line search and a direct solve (MUMPS): robust for contact and
 #: for the saddle-point structure of the undrained tissue. Users override any of these.
@@ -171,7 +172,7 @@ class StepOptions:
         if not 0.0 <= self.jacobian_reuse < 1.0:
             raise ValueError(f"need 0 <= jacobian_reuse < 1, got {self.jacobian_reuse}")
         self._check_carry()
-        self._check_factor_reuse()
+        count("factor_reuse", self.factor_reuse, "Krylov iterations", "factor_reuse = 15")
         if not 0.0 <= self.rho_inf <= 1.0:
             raise ValueError(f"need 0 <= rho_inf <= 1, got {self.rho_inf}")
         if isinstance(self.steps_per_period, bool) or not (
@@ -191,24 +192,14 @@ class StepOptions:
     def _check_carry(self) -> None:
         """`jacobian_carry`: a count of Newton iterations, and only with `jacobian_reuse`,
         whose threshold is the carried Jacobian's fallback."""
-        carry = self.jacobian_carry
-        if isinstance(carry, bool) or not isinstance(carry, int) or carry < 0:
-            raise InputError("jacobian_carry", f"must be a whole number of Newton iterations "
-                             f">= 0, got {carry!r}.",
-                             "write e.g. jacobian_carry = 4 (0: off).")
+        carry = count("jacobian_carry", self.jacobian_carry, "Newton iterations",
+                      "jacobian_carry = 4")
         if carry > 0 and not self.jacobian_reuse > 0:
             raise InputError("jacobian_carry", f"a carry ({carry}) needs jacobian_reuse > 0, "
                              "whose threshold judges the kept Jacobian (without it, one that "
                              "stops contracting would never be reassembled).",
                              "set jacobian_reuse too (e.g. 0.05), or jacobian_carry = 0.")
 
-    def _check_factor_reuse(self) -> None:
-        """`factor_reuse`: a whole number of Krylov iterations (0: off)."""
-        limit = self.factor_reuse
-        if isinstance(limit, bool) or not isinstance(limit, int) or limit < 0:
-            raise InputError("factor_reuse", f"must be a whole number of Krylov iterations "
-                             f">= 0, got {limit!r}.",
-                             "write e.g. factor_reuse = 15 (0: off).")
 
 
 def check_factor_reuse(limit: int, linear: str, petsc_options: dict | None = None,
