@@ -186,6 +186,10 @@ class State:
     dt: fem.Constant
     quadrature_degree: int
     cells: Mapping[str, np.ndarray]
+    #: F of a Function sharing u's values that ufl.derivative leaves alone, or None: a 3D
+    #: hyperfoam's stress is then built by `materials.second_piola_kirchhoff`'s expansion
+    #: (the same values and derivative, a far cheaper Jacobian).
+    F_state: ufl.core.expr.Expr | None = None
 
     @property
     def mesh(self):
@@ -203,7 +207,8 @@ class Elastic:
 
     def __init__(self, material: Hyperfoam | LinearElastic, state: State):
         self.material = material
-        self.stress = self.elastic_stress = first_piola_kirchhoff(material, state.F)
+        self.stress = self.elastic_stress = first_piola_kirchhoff(material, state.F,
+                                                                  state.F_state)
         self.energy = strain_energy_density(material, state.F)
         self.p_wave_modulus = small_strain_p_wave_modulus(material)
 
@@ -222,7 +227,7 @@ class Viscoelastic:
 
     def __init__(self, material: Hyperfoam, prony: Prony, state: State, region: str):
         self.material = material
-        S_e = second_piola_kirchhoff(material, state.F)
+        S_e = second_piola_kirchhoff(material, state.F, state.F_state)
         self.history = QuasiLinearViscoelasticity(
             S_e, prony, state.mesh, state.quadrature_degree, state.dt, cells=state.cells[region],
             name=history_name(region))

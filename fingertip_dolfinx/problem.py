@@ -181,7 +181,8 @@ class FingertipProblem(SteppableState):
         self._unknowns_u()
         cells = {r: fmesh.cell_tags.find(self.tags[r]) for r in REGIONS}
         self.laws = compose_laws(tissues, options, State(
-            self.u, self.F, self.dt, options.quadrature_degree, cells))
+            self.u, self.F, self.dt, options.quadrature_degree, cells,
+            None if self.u_state is None else deformation_gradient(self.u_state)))
         self._residual(cells["subcutaneous"])
         self.admissibility = self._admissibility(cells["subcutaneous"])
         self.time = 0.0
@@ -204,6 +205,12 @@ class FingertipProblem(SteppableState):
         self.u_nm1 = fem.Function(self.V, name="displacement_nm1")
         self.rate_weights = fem.Constant(self.mesh, np.array([1.0, -1.0, 0.0]))
         self.F = deformation_gradient(self.u)
+        #: 3D: u's values under another name (the same vector), which ufl.derivative does not
+        #: differentiate: the hyperfoam's stress is expanded about it (materials.
+        #: second_piola_kirchhoff), equal in value and derivative, and its Jacobian kernel
+        #: far shorter (docs/benchmarks/solvers-3d.md, "The Jacobian's assembly").
+        self.u_state = fem.Function(self.V, x=self.u.x, name="displacement_state") \
+            if self.gdim == 3 else None
 
     def _residual(self, sub_cells: np.ndarray) -> None:
         """The residuals from their named parts, the unknowns, the supports and the reaction."""

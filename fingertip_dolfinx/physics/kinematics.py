@@ -207,6 +207,49 @@ def _pair_sum(f: ScalarFn, x, delta, tol: float):
     return ufl.conditional(near, series, f(x + s) + f(x - s))
 
 
+def invariants_3d(C) -> tuple:
+    """(m, q, d) of a symmetric 3×3 C: m = tr C/3, q = tr(D²) and d = det D of its deviator
+    D = C − mI. Σ_a f(c_a) is a function of these three alone (`eigen_sum_of_invariants`)."""
+    m = ufl.tr(C) / 3
+    D = C - m * ufl.Identity(3)
+    return m, ufl.inner(D, D), ufl.det(D)
+
+
+def eigen_sum_of_invariants(m, q, d, f: ScalarFn, tol: float = SWITCH_TOL):
+    """Σ_a f(c_a) as `eigen_sum` of a 3×3 C gives it, from its invariants (`invariants_3d`)
+    alone: the same three regions and formulas, with tr(Dᵏ) of the traceless D from q and d
+    (Cayley–Hamilton: tr D³ = 3d, tr D⁴ = q²/2, tr D⁵ = 5qd/2, tr D⁶ = q³/4 + 3d²) and
+    r = det(D/p)/2 = d/(2p³). Equal to `eigen_sum` to round-off; a function of three scalars,
+    whose derivatives UFL takes in three directions instead of C's nine."""
+    near = ufl.lt(q, tol * m**2)
+    fd = _derivatives(f, m, 6)
+    powers = [None, None, q, 3 * d, q**2 / 2, 2.5 * q * d, q**3 / 4 + 3 * d**2]
+    series = 3 * fd[0] + sum(fd[k] * powers[k] / math.factorial(k) for k in range(2, 7))
+    p = ufl.sqrt(ufl.conditional(near, tol * m**2, q) / 6)
+    r = d / (2 * p**3)
+    return ufl.conditional(near, series, _off_isotropic(m, p, r, f, tol))
+
+
+def _off_isotropic(m, p, r, f: ScalarFn, tol: float):
+    """Σ_a f(c_a) away from C ∝ I, from m, p and r (`_eigen_sum_3d`): Cardano's form for
+    |r| < PAIR_SWITCH, the pair series around a double eigenvalue beyond."""
+    paired = ufl.ge(abs(r), PAIR_SWITCH)
+    # Each branch gets an r inside its own range, so the branch not taken stays finite.
+    r_trig = ufl.max_value(ufl.min_value(r, PAIR_SWITCH), -PAIR_SWITCH)
+    phi = ufl.acos(r_trig) / 3
+    closed = sum(f(m + 2 * p * ufl.cos(phi + 2 * math.pi * k / 3)) for k in range(3))
+
+    sigma = ufl.conditional(ufl.ge(r, 0.0), 1.0, -1.0)
+    # Round-off can put |r| a hair above 1: t < 0 by ~1e-16 is inside the series' range, and
+    # no clamp there (a clamp would drop the t-derivatives the tangent needs).
+    t = ufl.min_value(1.0 - sigma * r, 1.0 - PAIR_SWITCH)
+    e = _one_minus_g(t)
+    g = 1.0 - e
+    pair = (f(m + 2 * sigma * p * g)
+            + _pair_sum(f, m - sigma * p * g, 3 * p**2 * e * (2.0 - e), tol))
+    return ufl.conditional(paired, pair, closed)
+
+
 def _eigen_sum_3d(C, f: ScalarFn, tol: float):
     """3×3 version, exact (value and derivatives) at every state, in three regions.
 
@@ -239,18 +282,4 @@ def _eigen_sum_3d(C, f: ScalarFn, tol: float):
 
     p = ufl.sqrt(ufl.conditional(near, tol * m**2, q) / 6)
     r = ufl.det(D / p) / 2
-    paired = ufl.ge(abs(r), PAIR_SWITCH)
-    # Each branch gets an r inside its own range, so the branch not taken stays finite.
-    r_trig = ufl.max_value(ufl.min_value(r, PAIR_SWITCH), -PAIR_SWITCH)
-    phi = ufl.acos(r_trig) / 3
-    closed = sum(f(m + 2 * p * ufl.cos(phi + 2 * math.pi * k / 3)) for k in range(3))
-
-    sigma = ufl.conditional(ufl.ge(r, 0.0), 1.0, -1.0)
-    # Round-off can put |r| a hair above 1: t < 0 by ~1e-16 is inside the series' range, and
-    # no clamp there (a clamp would drop the t-derivatives the tangent needs).
-    t = ufl.min_value(1.0 - sigma * r, 1.0 - PAIR_SWITCH)
-    e = _one_minus_g(t)
-    g = 1.0 - e
-    pair = (f(m + 2 * sigma * p * g)
-            + _pair_sum(f, m - sigma * p * g, 3 * p**2 * e * (2.0 - e), tol))
-    return ufl.conditional(near, series, ufl.conditional(paired, pair, closed))
+    return ufl.conditional(near, series, _off_isotropic(m, p, r, f, tol))

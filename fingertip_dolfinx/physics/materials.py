@@ -20,7 +20,12 @@ import ufl
 
 from ..errors import CompactionError, InputError
 from ..validation import check_keys
-from .kinematics import eigen_sum, right_cauchy_green
+from .kinematics import (
+    eigen_sum,
+    eigen_sum_of_invariants,
+    invariants_3d,
+    right_cauchy_green,
+)
 
 # --------------------------------------------------------------------------------------------
 # validation helpers
@@ -232,6 +237,22 @@ class Hyperfoam:
                  for (k, a), b in zip(terms, self.betas))
         return W
 
+    def invariants(self, C) -> tuple:
+        """(m, q, d, det C) of a 3×3 C: W is a function of these alone
+        (`energy_of_invariants`, `second_piola_kirchhoff`'s expansion)."""
+        return (*invariants_3d(C), ufl.det(C))
+
+    def energy_of_invariants(self, m, q, d, detC) -> ufl.core.expr.Expr:
+        """W of a 3×3 C from its `invariants`: `strain_energy`'s sums, term for term."""
+        terms = [(2.0 * m_ / a**2, a) for m_, a in zip(self.mu, self.alpha)]
+
+        def stretch_part(c):
+            return sum(k * c ** (a / 2.0) for k, a in terms)
+
+        W = eigen_sum_of_invariants(m, q, d, stretch_part)
+        return W + sum(k * (-3.0 + _volume_term(detC, a, b))
+                       for (k, a), b in zip(terms, self.betas))
+
     # ---- numpy closed forms (checks, stability) --------------------------------------------
     def principal_kirchhoff(self, stretches) -> np.ndarray:
         """τ_a = Σ_i (2μ_i/α_i)(λ_a^α_i − J^(−α_i β_i)); stretches (..., 3) -> (..., 3), MPa.
@@ -333,14 +354,52 @@ def small_strain_p_wave_modulus(material: Hyperfoam | LinearElastic) -> float:
 # stresses from any material with strain_energy(C)
 
 
-def second_piola_kirchhoff(material, F) -> ufl.core.expr.Expr:
-    """S = 2 ∂W/∂C at C = FᵀF (symmetric: the energies use symmetric functions of C)."""
+def second_piola_kirchhoff(material, F, F_state=None) -> ufl.core.expr.Expr:
+    """S = 2 ∂W/∂C at C = FᵀF (symmetric: the energies use symmetric functions of C).
+
+    `F_state`: F of a displacement Function that shares its values with F's (`fem.Function(V,
+    x=u.x)`) but that ufl.derivative does not differentiate; given, a 3D hyperfoam's S is
+    `_expanded_stress`'s, the same values and the same derivative at a much cheaper tangent.
+    """
+    if F_state is not None and F.ufl_shape == (3, 3) and hasattr(material, "invariants"):
+        return _expanded_stress(material, F, F_state)
     C = ufl.variable(right_cauchy_green(F))
     return 2.0 * ufl.diff(material.strain_energy(C), C)
 
 
-def first_piola_kirchhoff(material, F) -> ufl.core.expr.Expr:
-    return F * second_piola_kirchhoff(material, F)
+def _expanded_stress(material, F, F_state) -> ufl.core.expr.Expr:
+    """S of a 3D hyperfoam, expanded in W's invariants about the state: same values, same
+    derivative, a Jacobian kernel a fifth as long.
+
+    W = G(a(C)) with a = (m, q, d, det C) (`Hyperfoam.invariants`). With ā = a(C̄),
+    C̄ = F_stateᵀF_state, S = 2 ∂W̃/∂C of the second-order Taylor expansion
+
+        W̃(C) = G(ā) + Σ_i G_i(ā)(a_i − ā_i) + ½ Σ_ij G_ij(ā)(a_i − ā_i)(a_j − ā_j).
+
+    F_state has F's values, so a − ā = 0: S̃ = 2 Σ_i G_i ∂a_i/∂C = S, and its derivative in u
+    (ufl.derivative sees F, not F_state) is 2 Σ_i [G_i ∂²a_i/∂C² + Σ_j G_ij ∂a_i/∂C ⊗ ∂a_j/∂C]
+    : dC, the exact tangent. Why: from S = 2 ∂W/∂C UFL differentiates W (its eigenvalue sum's
+    three branches, each with its series: FFCx evaluates every branch) in C's 9 directions and
+    the Jacobian again in 9; here G only in the 4 invariants' directions, once and twice, and
+    the argument enters through the polynomials a(C) alone. The 3D line load's Jacobian
+    kernel: 74 000 → 13 500 lines of C, 55 → 21 µs per cell (docs/benchmarks/solvers-3d.md,
+    "The Jacobian's assembly"). Not for a second derivative (ū would be held fixed).
+    """
+    C = ufl.variable(right_cauchy_green(F))
+    a = material.invariants(C)
+    a0 = [ufl.variable(x) for x in material.invariants(right_cauchy_green(F_state))]
+    G = material.energy_of_invariants(*a0)
+    G1 = [ufl.diff(G, x) for x in a0]
+    da = [x - x0 for x, x0 in zip(a, a0)]
+    W = sum(g * dx for g, dx in zip(G1, da))
+    for i, g in enumerate(G1):
+        W += sum((0.5 if j == i else 1.0) * ufl.diff(g, a0[j]) * da[i] * da[j]
+                 for j in range(i, len(a0)))
+    return 2.0 * ufl.diff(W, C)
+
+
+def first_piola_kirchhoff(material, F, F_state=None) -> ufl.core.expr.Expr:
+    return F * second_piola_kirchhoff(material, F, F_state)
 
 
 def cauchy_stress(material, F) -> ufl.core.expr.Expr:
