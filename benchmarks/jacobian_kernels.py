@@ -5,6 +5,10 @@ kernel's lines of C, and the whole Jacobian's assembly (kernels + insertion) for
 
     .venv/bin/python benchmarks/jacobian_kernels.py                   # line-load-3d, 1 rank
     .venv/bin/mpiexec -n 2 .venv/bin/python benchmarks/jacobian_kernels.py --repeats 3
+    .venv/bin/python benchmarks/jacobian_kernels.py --cflags="-O2 -g0" --cache-dir /tmp/O2
+
+`--cflags` replaces the 3D forms' C compiler flags (problem.JIT_OPTIONS_3D), `--cache-dir` the
+FFCx cache (an empty one: the cold compile's time, printed with the table).
 
 The state is `fingertip_3d.smooth_state`'s (strains of a few per cent); a kernel's cost does
 not depend on the state's branch (FFCx evaluates both sides of every conditional), only on
@@ -18,16 +22,23 @@ import time
 import numpy as np
 from fingertip_3d import smooth_state
 from mpi4py import MPI
-from timing import scene_and_out, scene_parser
+from timing import scene_and_out, scene_parser, tally
 
 import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
+from fingertip_dolfinx.problem import JIT_OPTIONS_3D
 
 
 def main():
     parser = scene_parser(__doc__, "line-load-3d")
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--cflags", default=None, help="C compiler flags of the 3D forms")
+    parser.add_argument("--cache-dir", default=None, help="FFCx cache of the 3D forms")
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
+    _jit_options(args.cflags, args.cache_dir)
+    import dolfinx.jit
+
+    compiling = tally(dolfinx.jit, "ffcx_jit")
     scene, out = scene_and_out(args, comm)
     job = smooth_state(scene, out, comm)
     nonlinear = job.stepper.nonlinear
@@ -39,6 +50,17 @@ def main():
     rows = comm.gather(rows, root=0)
     if comm.rank == 0:
         _report(rows, whole, comm.size)
+        print(f"form compilation (or the cache) on rank 0: {compiling.wall:.1f} s wall, "
+              f"{compiling.cpu:.1f} s CPU (the compiler's own CPU is a child's: wall), "
+              f"{compiling.calls} forms; C flags {JIT_OPTIONS_3D['cffi_extra_compile_args']}")
+
+
+def _jit_options(cflags: str | None, cache_dir: str | None) -> None:
+    """Replace the 3D forms' compiler flags and cache folder (problem.JIT_OPTIONS_3D)."""
+    if cflags is not None:
+        JIT_OPTIONS_3D["cffi_extra_compile_args"] = cflags.split()
+    if cache_dir is not None:
+        JIT_OPTIONS_3D["cache_dir"] = cache_dir
 
 
 def _forms(nonlinear):

@@ -175,8 +175,9 @@ class FingertipProblem(SteppableState):
         self.gdim = msh.geometry.dim
         #: Compiler flags of the Newton forms (stepping.TimeStepper passes them on): None, the
         #: defaults, in 2D. The 3D hyperfoam's Jacobian (three principal stretches with their
-        #: series branches, per term and region) is a very long C function, which gcc compiles
-        #: far faster at -O1 than at -O2 (times: docs/benchmarks/measurements.md).
+        #: series branches, per region) is a long C function (13 500 lines since its stress is
+        #: expanded in invariants, 74 000 before): gcc compiles it faster at -O1 than at -O2,
+        #: and -O2's code is no faster (times: docs/benchmarks/measurements.md).
         self.jit_options = JIT_OPTIONS_3D if self.gdim == 3 else None
         self._unknowns_u()
         cells = {r: fmesh.cell_tags.find(self.tags[r]) for r in REGIONS}
@@ -207,10 +208,14 @@ class FingertipProblem(SteppableState):
         self.F = deformation_gradient(self.u)
         #: 3D: u's values under another name (the same vector), which ufl.derivative does not
         #: differentiate: the hyperfoam's stress is expanded about it (materials.
-        #: second_piola_kirchhoff), equal in value and derivative, and its Jacobian kernel
-        #: far shorter (docs/benchmarks/solvers-3d.md, "The Jacobian's assembly").
+        #: second_piola_kirchhoff), equal in value and first derivative, and its Jacobian
+        #: kernel far shorter (docs/benchmarks/solvers-3d.md, "The Jacobian's assembly"). Not
+        #: with Nitsche's θ ≠ 0, whose residual holds the stress's derivative: its Jacobian
+        #: needs the second, which the expansion does not keep.
+        o = self.options
+        expand = self.gdim == 3 and not (o.contact == "nitsche" and o.contact_theta != 0)
         self.u_state = fem.Function(self.V, x=self.u.x, name="displacement_state") \
-            if self.gdim == 3 else None
+            if expand else None
 
     def _residual(self, sub_cells: np.ndarray) -> None:
         """The residuals from their named parts, the unknowns, the supports and the reaction."""

@@ -89,3 +89,23 @@ def test_the_state_copy_is_not_differentiated(space):
     assert np.array_equal(a, a_state)
     assert ufl.algorithms.expand_derivatives(ufl.derivative(
         ufl.as_vector(invariants_3d(C_state)), u, u)) == ufl.as_vector([0, 0, 0])
+
+
+def test_only_a_3d_hyperfoam_is_expanded(space):
+    """2D (plane strain) and the linear-elastic bone and nail keep the direct S = 2 ∂W/∂C (no
+    state copy in it): their forms, and so their numbers, are unchanged bit for bit."""
+    from ufl.algorithms import extract_coefficients
+
+    V = space
+    u = fem.Function(V)
+    u_state = fem.Function(V, x=u.x)
+    F, F_state = deformation_gradient(u), deformation_gradient(u_state)
+    F2, F2_state = (ufl.as_matrix([[G[i, j] for j in range(2)] for i in range(2)])
+                    for G in (F, F_state))
+
+    def expanded(material, F, F_state):
+        return u_state in extract_coefficients(mat.second_piola_kirchhoff(material, F, F_state))
+
+    assert not expanded(mat.BONE, F, F_state)
+    assert not expanded(mat.SKIN, F2, F2_state)
+    assert expanded(mat.SKIN, F, F_state)
