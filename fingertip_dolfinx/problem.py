@@ -94,6 +94,16 @@ JIT_WAIT = 1800
 JIT_OPTIONS_3D = {"cffi_extra_compile_args": ["-O1", "-g0"], "timeout": JIT_WAIT}
 
 
+def expands_stress(gdim: int, options: ModelOptions) -> bool:
+    """Whether the hyperfoam's stress is expanded about a copy of the state (materials.
+    second_piola_kirchhoff): equal in value and first derivative, and its Jacobian kernel far
+    shorter (docs/benchmarks/solvers-3d.md, "The Jacobian's assembly"). 3D only (2D's forms
+    stay as they were, bit for bit), and not with Nitsche's θ ≠ 0, whose residual holds the
+    stress's derivative: its Jacobian needs the second, which the expansion does not keep."""
+    nitsche_derivative = options.contact == "nitsche" and options.contact_theta != 0
+    return gdim == 3 and not nitsche_derivative
+
+
 def wait_for_compiles_elsewhere(seconds: float = JIT_WAIT) -> None:
     """Make every form compiled from now on in this process wait up to `seconds` for another
     process compiling the same form (DOLFINx's default JIT option; a user's
@@ -207,15 +217,9 @@ class FingertipProblem(SteppableState):
         self.rate_weights = fem.Constant(self.mesh, np.array([1.0, -1.0, 0.0]))
         self.F = deformation_gradient(self.u)
         #: 3D: u's values under another name (the same vector), which ufl.derivative does not
-        #: differentiate: the hyperfoam's stress is expanded about it (materials.
-        #: second_piola_kirchhoff), equal in value and first derivative, and its Jacobian
-        #: kernel far shorter (docs/benchmarks/solvers-3d.md, "The Jacobian's assembly"). Not
-        #: with Nitsche's θ ≠ 0, whose residual holds the stress's derivative: its Jacobian
-        #: needs the second, which the expansion does not keep.
-        o = self.options
-        expand = self.gdim == 3 and not (o.contact == "nitsche" and o.contact_theta != 0)
+        #: differentiate: the hyperfoam's stress is expanded about it (`expands_stress`).
         self.u_state = fem.Function(self.V, x=self.u.x, name="displacement_state") \
-            if expand else None
+            if expands_stress(self.gdim, self.options) else None
 
     def _residual(self, sub_cells: np.ndarray) -> None:
         """The residuals from their named parts, the unknowns, the supports and the reaction."""

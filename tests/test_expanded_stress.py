@@ -109,3 +109,16 @@ def test_only_a_3d_hyperfoam_is_expanded(space):
     assert not expanded(mat.BONE, F, F_state)
     assert not expanded(mat.SKIN, F2, F2_state)
     assert expanded(mat.SKIN, F, F_state)
+
+
+def test_the_problem_expands_in_3d_unless_nitsche_differentiates_the_stress():
+    """Nitsche's θ = ±1 puts the stress's derivative in the residual, and its Jacobian needs
+    the second, which the expansion (about a fixed state copy) does not have: direct S there."""
+    from fingertip_dolfinx.model import ModelOptions
+    from fingertip_dolfinx.problem import expands_stress
+
+    assert expands_stress(3, ModelOptions(contact="penalty"))
+    assert expands_stress(3, ModelOptions(contact="nitsche", contact_theta=0))
+    assert not expands_stress(3, ModelOptions(contact="nitsche", contact_theta=1))
+    assert not expands_stress(3, ModelOptions(contact="nitsche", contact_theta=-1))
+    assert not expands_stress(2, ModelOptions())
