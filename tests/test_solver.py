@@ -297,6 +297,7 @@ def _predicted_column(reuse: bool, prefix: str):
         factorisations
 
 
+@pytest.mark.mpi
 def test_tangent_reuse_predicts_the_same_steps_without_factorising_for_them():
     """StepOptions.tangent_reuse solves the tangent predictor's system (the accepted state's
     Jacobian, assembled fresh) by GMRES to a relative 1e-8 on the LU factors the last step's

@@ -813,7 +813,7 @@ class TangentPredictor:
     def predict(self, problem, t: float, t_new: float, kept: bool = False) -> int:
         """Set the unknowns to the tangent predictor of the step t → t_new (the loads end at
         t_new, the problem's dt is the step's). `kept`: solve by GMRES on the LU factors the
-        solver holds (StepOptions.tangent_reuse). Returns GMRES's iterations (0 for LU)."""
+        solver holds (StepOptions.tangent_reuse). Returns GMRES's iterations (0 without)."""
         return self.predict_along(problem, lambda s: problem.set_time(
             t_new if s == 1.0 else t + s * (t_new - t)), kept)  # t_new itself, to the digit
 
@@ -835,8 +835,8 @@ class TangentPredictor:
         snes.computeFunction(x, self.r1)
         move(1.0)
         self.r1.axpby(1.0 - 1.0 / self.EPS, 1.0 / self.EPS, self.r0)  # r0 + (r1 − r0)/EPS
-        iterations = self._solve_kept(J, self.r1, self.dx) if kept else None
-        if iterations is None:
+        iterations, solved = self._solve_kept(J, self.r1, self.dx) if kept else (0, False)
+        if not solved:
             ksp = snes.getKSP()
             ksp.setOperators(J, P)
             ksp.solve(self.r1, self.dx)
@@ -845,11 +845,11 @@ class TangentPredictor:
         dolfinx.fem.petsc.assign(x, problem.unknowns)
         for f in problem.unknowns:
             f.x.scatter_forward()
-        return iterations or 0
+        return iterations
 
-    def _solve_kept(self, J: PETSc.Mat, b: PETSc.Vec, dx: PETSc.Vec) -> int | None:
+    def _solve_kept(self, J: PETSc.Mat, b: PETSc.Vec, dx: PETSc.Vec) -> tuple[int, bool]:
         """dx ≈ J⁻¹ b by GMRES (KEPT_RTOL), right-preconditioned by the factors the Newton
-        solver's LU holds; its iterations, or None where it did not converge."""
+        solver's LU holds: its iterations, and whether it converged."""
         pc = self.snes.getKSP().getPC()
         if self._gmres is None:
             self._gmres = _kept_factor_gmres(J.getComm(), pc, self.KEPT_RTOL, self.KEPT_MAX_IT)
@@ -859,11 +859,10 @@ class TangentPredictor:
             self._gmres.solve(b, dx)
         finally:
             pc.setReusePreconditioner(False)  # SNES sets it again from its own lag
-        if self._gmres.getConvergedReason() <= 0:
-            self.refactored += 1
-            return None
-        self.kept += 1
-        return self._gmres.getIterationNumber()
+        solved = self._gmres.getConvergedReason() > 0
+        self.kept += solved
+        self.refactored += not solved
+        return self._gmres.getIterationNumber(), solved
 
 
 @dataclass
