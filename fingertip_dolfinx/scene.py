@@ -823,11 +823,11 @@ def scene_record(scene: Scene) -> dict:
 
 
 def _steps_record(steps) -> dict:
-    """The `[steps]` table; `tangent_start`, `jacobian_carry` and `factor_reuse` only where they
-    are on (a scene without them has the record it had before the options existed: its runs
-    resume)."""
+    """The `[steps]` table; `tangent_start`, `tangent_reuse`, `jacobian_carry` and
+    `factor_reuse` only where they are on (a scene without them has the record it had before
+    the options existed: its runs resume)."""
     table = dataclasses.asdict(steps)
-    for key in ("tangent_start", "jacobian_carry", "factor_reuse"):
+    for key in ("tangent_start", "tangent_reuse", "jacobian_carry", "factor_reuse"):
         if not table[key]:
             del table[key]
     return table

@@ -274,6 +274,70 @@ def test_factor_reuse_is_refused_where_it_would_not_solve_exactly(solver, word):
     assert error.value.where.endswith("steps.factor_reuse")
 
 
+def _predicted_column(reuse: bool, prefix: str):
+    """The relaxing column of `_relaxing_column`, every step after the first started from the
+    tangent predictor (steps.tangent_start, extrapolate off), whose linear solve is by GMRES on
+    the factors the last step ended with when `reuse` (steps.tangent_reuse): its reports,
+    reactions, the predictor and the MUMPS numerical factorisations it did."""
+    from petsc4py import PETSc
+
+    PETSc.Log.begin()
+    event = PETSc.Log.Event("MatLUFactorNum")
+    history = RampHold(0.01, 0.1, 30.0)
+    column = ConfinedBlock(1, 8, history, tissue=mat.SUBCUTANEOUS_BIPHASIC, width=0.1,
+                           drained_top=True, top_displacement=True)
+    options = StepOptions(dt_initial=0.025, dt_max=30.0, growth=1.0, hold_growth=3.0,
+                          tangent_start=True, extrapolate=False, tangent_reuse=reuse)
+    stepper = TimeStepper(column, options, TIGHT, prefix=prefix)
+    before = event.getPerfInfo()["count"]
+    reports = stepper.run(history, history.end_time)
+    factorisations = event.getPerfInfo()["count"] - before
+    stepper.close()
+    return reports, np.array([r.diagnostics["reaction"] for r in reports]), stepper.tangent, \
+        factorisations
+
+
+@pytest.mark.mpi
+def test_tangent_reuse_predicts_the_same_steps_without_factorising_for_them():
+    """StepOptions.tangent_reuse solves the tangent predictor's system (the accepted state's
+    Jacobian, assembled fresh) by GMRES to a relative 1e-8 on the LU factors the last step's
+    Newton solve ended with, not by factorising it. The predictor is then the exact one to
+    that tolerance, so Newton takes the same steps in the same iterations to the same
+    reactions (to far below its tolerance, a residual 1e-12 of the first: 1e-8 leaves room
+    for the conditioning); every predictor but the run's first (no factors yet) is solved on
+    kept factors, and each saves MUMPS a factorisation."""
+    plain, plain_force, plain_tangent, plain_lu = _predicted_column(False, "tr0_")
+    kept, kept_force, tangent, kept_lu = _predicted_column(True, "tr1_")
+    assert len(plain) >= 8 and plain_tangent.kept == 0
+    assert [r.time for r in kept] == [r.time for r in plain]
+    assert [r.newton_iterations for r in kept] == [r.newton_iterations for r in plain]
+    assert np.max(np.abs(kept_force - plain_force)) < 1e-8 * np.max(np.abs(plain_force))
+    predictors = len(plain) - 1  # every step but the first
+    assert tangent.kept == predictors and tangent.refactored == 0
+    assert kept_lu == plain_lu - predictors
+
+
+def test_tangent_reuse_lets_a_scene_switch_to_the_iterative_route():
+    """The 3D line load keeps its factors for the predictor; the iterative route has none, and
+    the scene still runs on it (the guide's cluster recipe: `--set solver.linear=iterative`),
+    its predictor solved by the route's own Krylov solver."""
+    from fingertip_dolfinx.scene import load_scene
+
+    assert load_scene("line-load-3d").steps.tangent_reuse
+    scene = load_scene("line-load-3d", ["solver.linear=iterative"])
+    assert scene.linear == "iterative" and scene.steps.tangent_reuse
+
+
+def test_tangent_reuse_is_refused_without_the_tangent_predictor():
+    """The option serves the tangent predictor: refused without it, naming the key."""
+    from fingertip_dolfinx.errors import InputError
+    from fingertip_dolfinx.scene import load_scene
+
+    with pytest.raises(InputError, match="tangent_start") as error:
+        load_scene("line-load", ["steps.tangent_reuse=true"])
+    assert "tangent_reuse" in error.value.where
+
+
 def test_krylov_column_counts_the_newton_iterations_it_reports(shared_tmp_path):
     """With MUMPS every Newton iteration is one linear solve of one "Krylov iteration", so the
     history's per-step Krylov count must equal its Newton count also in steps whose first

@@ -102,6 +102,15 @@ class StepOptions:
     #: from the accepted state, also after an output time. With friction, a plate that starts
     #: to move along the skin from rest: the shear scene's plain start failed 6 times there.
     tangent_start: bool = False
+    #: Solve the tangent predictor's system (the accepted state's Jacobian, assembled) by
+    #: GMRES to 1e-8 on the LU factors the last step's Newton solve ended with, instead of
+    #: factorising it: a few triangular solves instead of a factorisation per step (the 3D
+    #: line load: 15 factorisations fewer, the same steps and answers). The first step of a
+    #: run (a resume too) and a retry after a cut factorise as before. Needs `tangent_start`.
+    #: The direct route's (`[solver] linear`): on the iterative route, which has no factors,
+    #: the predictor is solved as without it. docs/benchmarks/contact-newton.md, "The tangent
+    #: predictor from the last factorisation".
+    tangent_reuse: bool = False
     #: Keep the Jacobian, and so its LU factorisation, for the next Newton iteration of a step
     #: when the last one cut the residual norm by at least this factor (0: never keep it; a
     #: chord step is then nearly as good as Newton's: the iterate is in the quadratic phase).
@@ -172,6 +181,7 @@ class StepOptions:
         if not 0.0 <= self.jacobian_reuse < 1.0:
             raise ValueError(f"need 0 <= jacobian_reuse < 1, got {self.jacobian_reuse}")
         self._check_carry()
+        self._check_tangent()
         count("factor_reuse", self.factor_reuse, "Krylov iterations", "factor_reuse = 15")
         if not 0.0 <= self.rho_inf <= 1.0:
             raise ValueError(f"need 0 <= rho_inf <= 1, got {self.rho_inf}")
@@ -200,6 +210,12 @@ class StepOptions:
                              "stops contracting would never be reassembled).",
                              "set jacobian_reuse too (e.g. 0.05), or jacobian_carry = 0.")
 
+    def _check_tangent(self) -> None:
+        """`tangent_reuse` serves the tangent predictor: only with `tangent_start`."""
+        if self.tangent_reuse and not self.tangent_start:
+            raise InputError("tangent_reuse", "reuses a factorisation for the tangent "
+                             "predictor, which is off (tangent_start = false).",
+                             "set tangent_start = true too, or tangent_reuse = false.")
 
 
 def check_factor_reuse(limit: int, linear: str, petsc_options: dict | None = None,
