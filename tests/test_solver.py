@@ -203,11 +203,11 @@ def test_jacobian_carry_is_refused_from_a_scene_naming_the_table():
     assert error.value.where.endswith("steps.jacobian_carry=3\": jacobian_carry")
 
 
-def _relaxing_column(limit: int, prefix: str):
+def _relaxing_column(prefix: str, **steps):
     """The held column of `_held_column` (its Jacobian's Darcy block changes with the steps,
-    x3 each in the hold) with the LU factorisation kept as GMRES's preconditioner
-    (StepOptions.factor_reuse = `limit`, 0: off): its reports, reactions, stepper and the
-    MUMPS numerical factorisations it did (PETSc's MatLUFactorNum events)."""
+    x3 each in the hold), stepped with the StepOptions `steps` besides its own: its reports,
+    reactions, stepper and the MUMPS numerical factorisations it did (PETSc's MatLUFactorNum
+    events)."""
     from petsc4py import PETSc
 
     PETSc.Log.begin()
@@ -215,8 +215,7 @@ def _relaxing_column(limit: int, prefix: str):
     history = RampHold(0.01, 0.1, 30.0)
     column = ConfinedBlock(1, 8, history, tissue=mat.SUBCUTANEOUS_BIPHASIC, width=0.1,
                            drained_top=True, top_displacement=True)
-    options = StepOptions(dt_initial=0.025, dt_max=30.0, growth=1.0, hold_growth=3.0,
-                          factor_reuse=limit)
+    options = StepOptions(dt_initial=0.025, dt_max=30.0, growth=1.0, hold_growth=3.0, **steps)
     stepper = TimeStepper(column, options, TIGHT, prefix=prefix)
     before = event.getPerfInfo()["count"]
     reports = stepper.run(history, history.end_time)
@@ -238,8 +237,8 @@ def test_factor_reuse_keeps_newton_and_its_answers_with_fewer_factorisations(lim
     factorises fewer matrices (one per Newton iteration without it): with a limit of 10,
     fewer than a fifth, the factors kept across the hold's steps although each changes the
     Darcy block by x3; with 2, most solves need the new factorisation, and still fewer."""
-    plain, plain_force, plain_stepper, plain_lu = _relaxing_column(0, "kf0_")
-    kept, kept_force, stepper, kept_lu = _relaxing_column(limit, f"kf{limit}_")
+    plain, plain_force, plain_stepper, plain_lu = _relaxing_column("kf0_")
+    kept, kept_force, stepper, kept_lu = _relaxing_column(f"kf{limit}_", factor_reuse=limit)
     assert plain_stepper.factor is None and len(plain) >= 8
     assert [r.time for r in kept] == [r.time for r in plain]
     assert [r.newton_iterations for r in kept] == [r.newton_iterations for r in plain]
@@ -274,29 +273,6 @@ def test_factor_reuse_is_refused_where_it_would_not_solve_exactly(solver, word):
     assert error.value.where.endswith("steps.factor_reuse")
 
 
-def _predicted_column(reuse: bool, prefix: str):
-    """The relaxing column of `_relaxing_column`, every step after the first started from the
-    tangent predictor (steps.tangent_start, extrapolate off), whose linear solve is by GMRES on
-    the factors the last step ended with when `reuse` (steps.tangent_reuse): its reports,
-    reactions, the predictor and the MUMPS numerical factorisations it did."""
-    from petsc4py import PETSc
-
-    PETSc.Log.begin()
-    event = PETSc.Log.Event("MatLUFactorNum")
-    history = RampHold(0.01, 0.1, 30.0)
-    column = ConfinedBlock(1, 8, history, tissue=mat.SUBCUTANEOUS_BIPHASIC, width=0.1,
-                           drained_top=True, top_displacement=True)
-    options = StepOptions(dt_initial=0.025, dt_max=30.0, growth=1.0, hold_growth=3.0,
-                          tangent_start=True, extrapolate=False, tangent_reuse=reuse)
-    stepper = TimeStepper(column, options, TIGHT, prefix=prefix)
-    before = event.getPerfInfo()["count"]
-    reports = stepper.run(history, history.end_time)
-    factorisations = event.getPerfInfo()["count"] - before
-    stepper.close()
-    return reports, np.array([r.diagnostics["reaction"] for r in reports]), stepper.tangent, \
-        factorisations
-
-
 @pytest.mark.mpi
 def test_tangent_reuse_predicts_the_same_steps_without_factorising_for_them():
     """StepOptions.tangent_reuse solves the tangent predictor's system (the accepted state's
@@ -304,11 +280,14 @@ def test_tangent_reuse_predicts_the_same_steps_without_factorising_for_them():
     Newton solve ended with, not by factorising it. The predictor is then the exact one to
     that tolerance, so Newton takes the same steps in the same iterations to the same
     reactions (to far below its tolerance, a residual 1e-12 of the first: 1e-8 leaves room
-    for the conditioning); every predictor but the run's first (no factors yet) is solved on
-    kept factors, and each saves MUMPS a factorisation."""
-    plain, plain_force, plain_tangent, plain_lu = _predicted_column(False, "tr0_")
-    kept, kept_force, tangent, kept_lu = _predicted_column(True, "tr1_")
-    assert len(plain) >= 8 and plain_tangent.kept == 0
+    for the conditioning); every predictor (every step's but the first's, which starts from
+    rest) is solved on kept factors, and each saves MUMPS a factorisation."""
+    predicted = {"tangent_start": True, "extrapolate": False}  # every step after the first
+    plain, plain_force, plain_stepper, plain_lu = _relaxing_column("tr0_", **predicted)
+    kept, kept_force, stepper, kept_lu = _relaxing_column("tr1_", **predicted,
+                                                          tangent_reuse=True)
+    tangent = stepper.tangent
+    assert len(plain) >= 8 and plain_stepper.tangent.kept == 0
     assert [r.time for r in kept] == [r.time for r in plain]
     assert [r.newton_iterations for r in kept] == [r.newton_iterations for r in plain]
     assert np.max(np.abs(kept_force - plain_force)) < 1e-8 * np.max(np.abs(plain_force))
