@@ -33,9 +33,14 @@ import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
 #: MUMPS options (without `mat_mumps_`) per configuration. ICNTL(7): the sequential ordering
 #: (7 automatic, 3 SCOTCH, 4 PORD, 5 METIS); ICNTL(28) = 2 with ICNTL(29) (1 PT-SCOTCH,
 #: 2 ParMETIS): parallel analysis; ICNTL(35): block low-rank factors (2: BLR factorisation and
-#: solve) with CNTL(7) the dropping tolerance (relative: an approximate factorisation).
+#: solve) with CNTL(7) the dropping tolerance (relative: an approximate factorisation);
+#: ICNTL(13) = 1: the root front on one rank, not ScaLAPACK's; ICNTL(8) = 0: no scaling;
+#: ICNTL(6) = 0: no column permutation to a zero-free diagonal.
 CONFIGS = {
     "default": {},
+    "root-seq": {"icntl_13": 1},
+    "noscale": {"icntl_8": 0},
+    "no-permutation": {"icntl_6": 0},
     "metis": {"icntl_7": 5},
     "scotch": {"icntl_7": 3},
     "pord": {"icntl_7": 4},
