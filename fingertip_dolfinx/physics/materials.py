@@ -224,18 +224,9 @@ class Hyperfoam:
 
     def strain_energy(self, C) -> ufl.core.expr.Expr:
         """W(C) for a 2×2 C (plane strain, λ3 = 1 inside) or a 3×3 C."""
-        d = C.ufl_shape[0]
-        terms = [(2.0 * m / a**2, a) for m, a in zip(self.mu, self.alpha)]
-
-        def stretch_part(c):  # Σ_i k_i λ^α_i with λ^α = c^(α/2): one eigen_sum for all terms
-            return sum(k * c ** (a / 2.0) for k, a in terms)
-
-        W = eigen_sum(C, stretch_part)
-        detC = ufl.det(C)  # J from det C keeps W a function of C alone
-        lam3_alpha = 1.0 if d == 2 else 0.0  # plane strain: λ3^α = 1 (3D: inside eigen_sum)
-        W += sum(k * (lam3_alpha - 3.0 + _volume_term(detC, a, b))
-                 for (k, a), b in zip(terms, self.betas))
-        return W
+        W = eigen_sum(C, self._stretch_part)
+        lam3_alpha = 1.0 if C.ufl_shape[0] == 2 else 0.0  # plane strain: λ3^α = 1 (3D: inside)
+        return W + self._volume_part(ufl.det(C), lam3_alpha)  # J from det C: W a function of C
 
     def invariants(self, C) -> tuple:
         """(m, q, d, det C) of a 3×3 C: W is a function of these alone
@@ -244,14 +235,22 @@ class Hyperfoam:
 
     def energy_of_invariants(self, m, q, d, detC) -> ufl.core.expr.Expr:
         """W of a 3×3 C from its `invariants`: `strain_energy`'s sums, term for term."""
-        terms = [(2.0 * m_ / a**2, a) for m_, a in zip(self.mu, self.alpha)]
+        return eigen_sum_of_invariants(m, q, d, self._stretch_part) + self._volume_part(detC)
 
-        def stretch_part(c):
-            return sum(k * c ** (a / 2.0) for k, a in terms)
+    def _terms(self) -> list[tuple[float, float]]:
+        """(k_i, α_i) with k_i = 2μ_i/α_i²."""
+        return [(2.0 * m / a**2, a) for m, a in zip(self.mu, self.alpha)]
 
-        W = eigen_sum_of_invariants(m, q, d, stretch_part)
-        return W + sum(k * (-3.0 + _volume_term(detC, a, b))
-                       for (k, a), b in zip(terms, self.betas))
+    def _stretch_part(self, c):
+        """Σ_i k_i λ^α_i with λ^α = c^(α/2) at an eigenvalue c of C: one eigen_sum for all
+        terms."""
+        return sum(k * c ** (a / 2.0) for k, a in self._terms())
+
+    def _volume_part(self, detC, lam3_alpha: float = 0.0) -> ufl.core.expr.Expr:
+        """Σ_i k_i (λ3^α_i − 3 + the volume term of det C); λ3^α = 1 in plane strain, 0 in 3D
+        (where λ3 is inside the eigen_sum)."""
+        return sum(k * (lam3_alpha - 3.0 + _volume_term(detC, a, b))
+                   for (k, a), b in zip(self._terms(), self.betas))
 
     # ---- numpy closed forms (checks, stability) --------------------------------------------
     def principal_kirchhoff(self, stretches) -> np.ndarray:
