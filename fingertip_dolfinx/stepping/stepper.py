@@ -245,8 +245,9 @@ class TimeStepper:
         """
         nonlinear = self.nonlinear
         self.linear.release()
-        for tangent in {self.tangent, self.depth_tangent} - {None}:
-            tangent.close()
+        for tangent in (self.tangent, self.depth_tangent):  # one object where both exist
+            if tangent is not None:
+                tangent.close()  # closing twice is nothing
         for obj in (nonlinear.solver, nonlinear.A, nonlinear.P_mat, nonlinear.b, nonlinear.x):
             if obj is not None:
                 obj.destroy()
