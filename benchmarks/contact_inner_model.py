@@ -44,17 +44,17 @@ What it shows:
   the skin wraps the wedge's flank, still takes 4-13.
 - It does not pay: each Newton iteration costs 25-50 GMRES iterations on the kept factors
   (3-4 inner iterations of 8-12), and in 2D a triangular solve with its mat-vec and the
-  surface assembly costs ~1/6 of a factorisation, so the stepping costs 1.7-2.4 times the
-  baseline. In 3D (line-load-3d, 2 ranks) the first Newton iteration's inner systems needed
-  more than 40 GMRES iterations each (the switching points are hundreds: the rank of A_j − J)
-  and the first inner loop had not ended after 7 minutes; stopped. A cheaper inner solver
-  (one whose cost does not grow with the points that switch) is what this would need.
-- Linearising the gap too (a first version of this script: the law [−g − n·w]_+ with the
-  normal frozen at u) is worse than the scene:
-  near the 25 µm tip a point that slides 10-20 µm along the surface (Newton's steps at
-  residuals of 1e-6 N/mm are that long: the frictionless contact's soft tangential mode) sees
-  its gap change by ~w²/2R, tens of times the 0.1 µm smoothing band; bt's line search then
-  rejects the direction.
+  surface assembly costs ~1/8 of a factorisation (2.2 ms against 17 ms), so the stepping
+  costs 1.7-2.4 times the baseline. In 3D (line-load-3d, 2 ranks) the first Newton
+  iteration's inner systems needed more than 40 GMRES iterations each (the switching points
+  are hundreds: the rank of A_j − J), and the first inner loop had not ended after 7
+  minutes; stopped. A cheaper inner solver (one whose cost does not grow with the points
+  that switch) is what this would need.
+- Linearising the gap too (a first version of this script: the law [−g − n·w]_+ with the normal
+  frozen at u) is worse than the scene: near the 25 µm tip a point that slides 10-20 µm along
+  the surface (Newton's steps at residuals of 1e-6 N/mm are that long: the frictionless
+  contact's soft tangential mode) sees its gap change by ~w²/2R, tens of times the 0.1 µm
+  smoothing band; bt's line search then rejects the direction.
 
     .venv/bin/python benchmarks/contact_inner_model.py [--scene line-load-1pct] [--off]
         [--rtol 1e-4] [--gmres-rtol 1e-6] [--verbose] [--set key=value ...]
