@@ -100,6 +100,7 @@ from .options import (
     check_factor_reuse,
     check_petsc_options,
 )
+from .residual import UnliftedResidual
 
 
 class Steppable(Protocol):
@@ -189,6 +190,8 @@ class TimeStepper:
         #: Krylov iterations of all solves so far (1 per Newton step with the direct solver;
         #: tangent_reuse's GMRES iterations too).
         self.linear_iterations, self._last_linear = 0, 0
+        #: The residual without DOLFINx's Dirichlet lifting where it adds zero (residual.py).
+        self.residual = UnliftedResidual(self.snes)
         self._watch_residual()
         self._set_dynamics()
         #: Called after every Newton iteration on every rank together (a collective callable,
