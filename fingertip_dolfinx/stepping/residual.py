@@ -19,8 +19,8 @@ D for every condition, as `DirichletBC.set` computes it (ghosts included, on eve
 zero: the residual is assembled without the lifting; anything else (a condition whose value
 moves in time or is not yet met, a NaN): DOLFINx's own function, lifting and all. The decision
 is the data's, per evaluation; the skipped residual equals the lifted one to the bit (up to the
-sign of a zero entry: x + 0 = x). Measured on the 3D line load: docs/benchmarks/solvers-3d.md,
-"The residual without its lifting".
+sign of a zero entry: x + 0 = x). Measured on the 3D line load (a residual 40 % cheaper, about
+6 s of the run): docs/benchmarks/solvers-3d.md, "The residual's Dirichlet lifting".
 """
 
 from __future__ import annotations
