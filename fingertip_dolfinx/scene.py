@@ -230,6 +230,9 @@ class Scene:
         check_linear(self.linear, f"{self.name}: solver.linear")
         check_factor_reuse(self.steps.factor_reuse, self.linear, self.petsc_options,
                            f"{self.name}: steps.factor_reuse")
+        if self.linear == "direct":  # the iterative route has no factors: it solves as before
+            check_factor_reuse(self.steps.hold_factor_reuse, self.linear, self.petsc_options,
+                               f"{self.name}: steps.hold_factor_reuse")
         if not self.indenters:
             raise InputError(f"{self.name}: indenters", "no indenter given.",
                              "add an [[indenters]] table.")
@@ -823,11 +826,12 @@ def scene_record(scene: Scene) -> dict:
 
 
 def _steps_record(steps) -> dict:
-    """The `[steps]` table; `tangent_start`, `tangent_reuse`, `jacobian_carry` and
-    `factor_reuse` only where they are on (a scene without them has the record it had before
-    the options existed: its runs resume)."""
+    """The `[steps]` table; `tangent_start`, `tangent_reuse`, `jacobian_carry`,
+    `factor_reuse` and `hold_factor_reuse` only where they are on (a scene without them has the
+    record it had before the options existed: its runs resume)."""
     table = dataclasses.asdict(steps)
-    for key in ("tangent_start", "tangent_reuse", "jacobian_carry", "factor_reuse"):
+    for key in ("tangent_start", "tangent_reuse", "jacobian_carry", "factor_reuse",
+                "hold_factor_reuse"):
         if not table[key]:
             del table[key]
     return table

@@ -251,6 +251,59 @@ def test_factor_reuse_keeps_newton_and_its_answers_with_fewer_factorisations(lim
     assert all(r.linear_iterations <= 2 * limit * r.newton_iterations for r in kept)
 
 
+def test_hold_factor_reuse_keeps_the_factors_in_the_hold_only():
+    """StepOptions.hold_factor_reuse solves Newton's systems of held steps by flexible GMRES on
+    the LU factors the solver holds (FactorReuse in held steps only); the ramp's solves are the
+    direct route's, one factorisation each. The same steps, in the same Newton iterations, reach
+    the same reactions (to far below Newton's tolerance, as for factor_reuse); the ramp keeps
+    its factorisations (one per Newton iteration: each of its solves is one LU application)
+    and the hold, whose steps grow x3, needs fewer than half of its own."""
+    plain, plain_force, _, plain_lu = _relaxing_column("hf0_")
+    kept, kept_force, stepper, kept_lu = _relaxing_column("hf10_", hold_factor_reuse=10)
+    assert len(plain) >= 8 and [r.time for r in kept] == [r.time for r in plain]
+    assert [r.newton_iterations for r in kept] == [r.newton_iterations for r in plain]
+    assert np.max(np.abs(kept_force - plain_force)) < 1e-8 * np.max(np.abs(plain_force))
+    ramp = [r for r in kept if r.time <= 0.1 + 1e-12]
+    hold = [r for r in kept if r.time > 0.1 + 1e-12]
+    assert all(r.linear_iterations == r.newton_iterations for r in ramp)
+    assert stepper.factor.held_only and stepper.factor.kept > 0
+    ramp_lu = sum(r.newton_iterations for r in ramp)
+    hold_lu = sum(r.newton_iterations for r in hold)
+    assert plain_lu == ramp_lu + hold_lu
+    assert ramp_lu < kept_lu < ramp_lu + 0.5 * hold_lu
+
+
+@pytest.mark.parametrize("values, word", [
+    ({"hold_factor_reuse": -1}, "whole number"),
+    ({"hold_factor_reuse": True}, "whole number"),
+    ({"hold_factor_reuse": 10, "factor_reuse": 10}, "one of them"),
+])
+def test_hold_factor_reuse_refuses_what_it_cannot_use(values, word):
+    """No count of iterations, or both reuses at once (factor_reuse keeps the factors in every
+    step already), is refused, naming the key."""
+    from fingertip_dolfinx.errors import InputError
+
+    with pytest.raises(InputError, match=word) as error:
+        StepOptions(**values)
+    assert "hold_factor_reuse" in error.value.where
+
+
+def test_hold_factor_reuse_is_the_direct_routes_only():
+    """The kept factors are the direct route's LU: the iterative route, which has none, runs a
+    scene with the option as without it (the 3D line load's cluster recipe, `--set
+    solver.linear=iterative`); inexact Newton on the direct route is refused, naming the key
+    (its tolerance is set in the KSP pre-solve hook the kept factors replace)."""
+    from fingertip_dolfinx.errors import InputError
+    from fingertip_dolfinx.scene import load_scene
+
+    assert load_scene("line-load-3d").steps.hold_factor_reuse > 0
+    scene = load_scene("line-load-3d", ["solver.linear=iterative"])
+    assert scene.linear == "iterative" and scene.steps.hold_factor_reuse > 0
+    with pytest.raises(InputError, match="snes_ksp_ew") as error:
+        load_scene("line-load", ["steps.hold_factor_reuse=15", "solver.snes_ksp_ew=true"])
+    assert error.value.where.endswith("steps.hold_factor_reuse")
+
+
 @pytest.mark.parametrize("value", [-1, 2.5, True, "15"])
 def test_factor_reuse_refuses_what_is_no_count_of_iterations(value):
     from fingertip_dolfinx.errors import InputError

@@ -10,6 +10,7 @@ The modules, each using only those before it:
 - `tolerance`: a tolerance asked of the outputs turned into step options, and verified;
 - `diagnosis`: why a step failed, compaction or Newton's overshoot, in messages;
 - `linear`: the linear solver inside Newton (MUMPS LU, or FGMRES with a field split);
+- `residual`: Newton's residual without DOLFINx's Dirichlet lifting where it adds zero;
 - `stepper`: `TimeStepper`, the `Steppable` protocol a problem meets, `JacobianReuse`,
   `FactorReuse`.
 
@@ -37,6 +38,7 @@ _API = {
     **dict.fromkeys(("LinearSolver", "DIRECT_OPTIONS", "KSP_RTOL", "iterative_options",
                      "rigid_body_modes", "split_index_sets", "pressure_modulus",
                      "krylov_iterations"), "linear"),
+    "UnliftedResidual": "residual",
     **dict.fromkeys(("TimeStepper", "Steppable", "JacobianReuse", "FactorReuse"), "stepper"),
 }
 __all__ = sorted(_API)

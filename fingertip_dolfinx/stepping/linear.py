@@ -106,6 +106,28 @@ def kept_factor_options(limit: int) -> dict:
             "ksp_error_if_not_converged": False}
 
 
+def use_kept_factors(ksp: PETSc.KSP, limit: int, kept: bool) -> None:
+    """Switch the direct route's KSP between its two modes under StepOptions.
+    hold_factor_reuse = `limit`: `kept`, FGMRES as `kept_factor_options` (the tolerance on the
+    true residual, at most 2 × `limit` iterations, no restart) around the LU, whose factors
+    stepper.FactorReuse may keep; else the plain direct solve (preonly: one application of
+    the LU of the matrix solved). Flexible GMRES keeps its preconditioned vectors and builds
+    the solution from them, where GMRES right-preconditioned applies the LU once more at the
+    end: a pair of triangular solves fewer per solve (the same iterates in exact
+    arithmetic). The LU (the PC and its factors) is the same object in both."""
+    if kept:
+        most = 2 * limit
+        ksp.setType(PETSc.KSP.Type.FGMRES)
+        ksp.setGMRESRestart(most)
+        ksp.setPCSide(PETSc.PC.Side.RIGHT)
+        ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
+        ksp.setTolerances(rtol=KSP_RTOL, atol=_KRYLOV["ksp_atol"], max_it=most)
+    else:
+        ksp.setType(PETSc.KSP.Type.PREONLY)
+        ksp.setPCSide(PETSc.PC.Side.LEFT)
+        ksp.setNormType(PETSc.KSP.NormType.NONE)
+
+
 #: GAMG on the displacement block: smoothed aggregation with the rigid-body near null space,
 #: Chebyshev/Jacobi smoothing (diagonal scaling: each row sees its own stiffness, so the bone's
 #: 10⁷ larger entries do not swamp the tissue's), a square graph on the finest level. The

@@ -140,6 +140,20 @@ class StepOptions:
     #: instead of 78 for 1 359 GMRES iterations, the same cost; 2D slower (a triangular solve
     #: is 1/4 of a factorisation there). stepping.FactorReuse; docs/benchmarks/solvers-3d.md.
     factor_reuse: int = 0
+    #: `factor_reuse` in held steps only (the load the same at the step's start, middle and
+    #: end, as for `hold_growth`): there Newton's systems are solved by flexible GMRES (to
+    #: 1e-10) on the LU factors the solver holds, the next Jacobian factorised after a solve
+    #: of more than this many iterations, one not converged in twice as many finished by a
+    #: fresh factorisation; every other solve (the ramp's, the predictor's own) is the direct
+    #: route's (0: off). Under a held load only the tissues' relaxation moves the state, and
+    #: the factors that solved the last step still nearly solve the next one: on the 3D line
+    #: load (15), the hold's 6 steps take 3 factorisations instead of 8, the same Newton
+    #: iterations and answers (docs/benchmarks/solvers-3d.md, "The hold's Newton solves on the
+    #: kept factors"), where `factor_reuse` everywhere did not pay (the ramp's Jacobians
+    #: change too much). Direct route only (the iterative route, which has no factors, solves
+    #: as without it), without `snes_ksp_ew`, and not with `factor_reuse` (which keeps the
+    #: factors everywhere already).
+    hold_factor_reuse: int = 0
     #: "iterations": grow by `growth` after easy steps. "error": steps chosen by their
     #: estimated local time-integration error (rtol, atol); `growth` is then the largest
     #: factor from one step to the next.
@@ -183,6 +197,7 @@ class StepOptions:
         self._check_carry()
         self._check_tangent()
         count("factor_reuse", self.factor_reuse, "Krylov iterations", "factor_reuse = 15")
+        self._check_hold_factors()
         if not 0.0 <= self.rho_inf <= 1.0:
             raise ValueError(f"need 0 <= rho_inf <= 1, got {self.rho_inf}")
         if isinstance(self.steps_per_period, bool) or not (
@@ -209,6 +224,15 @@ class StepOptions:
                              "whose threshold judges the kept Jacobian (without it, one that "
                              "stops contracting would never be reassembled).",
                              "set jacobian_reuse too (e.g. 0.05), or jacobian_carry = 0.")
+
+    def _check_hold_factors(self) -> None:
+        """`hold_factor_reuse`: a count of Krylov iterations, and not with `factor_reuse`."""
+        held = count("hold_factor_reuse", self.hold_factor_reuse, "Krylov iterations",
+                     "hold_factor_reuse = 10")
+        if held > 0 and self.factor_reuse > 0:
+            raise InputError("hold_factor_reuse", f"keeps the LU factors in held steps, but "
+                             f"factor_reuse = {self.factor_reuse} keeps them in every step.",
+                             "set one of them (the other 0).")
 
     def _check_tangent(self) -> None:
         """`tangent_reuse` serves the tangent predictor: only with `tangent_start`."""

@@ -91,7 +91,7 @@ from .diagnosis import (
     error_stall_error,
     newton_failure,
 )
-from .linear import DIRECT_OPTIONS, LinearSolver, kept_factor_options
+from .linear import DIRECT_OPTIONS, LinearSolver, kept_factor_options, use_kept_factors
 from .options import (
     DEFAULT_PETSC_OPTIONS,
     SECOND_ORDER_RATE,
@@ -100,6 +100,7 @@ from .options import (
     check_factor_reuse,
     check_petsc_options,
 )
+from .residual import UnliftedResidual
 
 
 class Steppable(Protocol):
@@ -167,12 +168,7 @@ class TimeStepper:
         self.options = options or StepOptions()
         #: The linear solver inside Newton (linear.py): "direct" (MUMPS) or "iterative".
         self.linear = LinearSolver(linear, problem)
-        newton = {k: v for k, v in DEFAULT_PETSC_OPTIONS.items() if k not in DIRECT_OPTIONS}
-        limit = self.options.factor_reuse
-        kept = kept_factor_options(limit) if limit > 0 else {}
-        opts = {**newton, **self.linear.options, **kept,
-                **check_petsc_options(petsc_options or {}, "petsc_options")}
-        check_factor_reuse(limit, linear, opts)
+        opts, limit = self._solver_options(petsc_options, linear)
         # One NonlinearProblem for the whole run: its forms are compiled here, once.
         self.nonlinear = dolfinx.fem.petsc.NonlinearProblem(
             problem.residuals,
@@ -189,6 +185,8 @@ class TimeStepper:
         #: Krylov iterations of all solves so far (1 per Newton step with the direct solver;
         #: tangent_reuse's GMRES iterations too).
         self.linear_iterations, self._last_linear = 0, 0
+        #: The residual without DOLFINx's Dirichlet lifting where it adds zero (residual.py).
+        self.residual = UnliftedResidual(self.snes)
         self._watch_residual()
         self._set_dynamics()
         #: Called after every Newton iteration on every rank together (a collective callable,
@@ -200,8 +198,10 @@ class TimeStepper:
         #: Jacobian (and factorisation) reuse within a step (StepOptions.jacobian_reuse).
         reuse = self.options.jacobian_reuse
         self.reuse = JacobianReuse(self.snes, reuse) if reuse > 0 else None
-        #: The LU factorisation kept as GMRES's preconditioner (StepOptions.factor_reuse).
-        self.factor = FactorReuse(self.snes, limit) if limit > 0 else None
+        #: The LU factorisation kept as GMRES's preconditioner (StepOptions.factor_reuse, or
+        #: hold_factor_reuse: in held steps only).
+        self.factor = None if limit == 0 else FactorReuse(
+            self.snes, limit, held_only=self.options.factor_reuse == 0)
         #: Whether a step may start from the Jacobian the last one ended with (`_carries`), and
         #: whether the solver holds the last step's LU factors for the predictor (`_predict`).
         self._kept = self._factored = False
@@ -212,6 +212,22 @@ class TimeStepper:
         self.depth_tangent = None if getattr(problem, "force_control", None) is None else \
             self.tangent or TangentPredictor(self.snes, self.nonlinear)
         _check_force_control(problem, self.options)
+
+    def _solver_options(self, petsc_options: dict | None, linear: str) -> tuple[dict, int]:
+        """The SNES's PETSc options (Newton's defaults, the linear route's, a kept
+        factorisation's, the caller's) and the Krylov limit of the kept factors (0: none).
+        factor_reuse keeps the factors in every step (GMRES from the options), hold_factor_reuse
+        in held steps only (FactorReuse switches the direct route's KSP for them); the
+        iterative route has no factors: there hold_factor_reuse changes nothing."""
+        newton = {k: v for k, v in DEFAULT_PETSC_OPTIONS.items() if k not in DIRECT_OPTIONS}
+        held = self.options.hold_factor_reuse if linear == "direct" else 0
+        limit = self.options.factor_reuse or held
+        kept = kept_factor_options(limit) if self.options.factor_reuse > 0 else {}
+        opts = {**newton, **self.linear.options, **kept,
+                **check_petsc_options(petsc_options or {}, "petsc_options")}
+        check_factor_reuse(limit, linear, opts, "steps.factor_reuse" if kept else
+                           "steps.hold_factor_reuse")
+        return opts, limit
 
     def _set_dynamics(self) -> None:
         """Give a problem with inertia the scheme's ρ∞; refuse a quasi-static scheme for it."""
@@ -394,17 +410,29 @@ class TimeStepper:
         elif self.tangent is not None and len(line.states) == 2:  # its solve: an iteration
             self._predict(step)
             predicted = 1
-        if control is not None:
-            step.reason, step.iterations = self._solve_to_force(control, step.t_new)
-        elif self._kept and not predicted and step.cuts == step.rejected == 0 and _held(
-                line.history, step.t, step.t_new):
-            step.reason, step.iterations = self._solve_from_kept()
-        else:
-            step.reason, step.iterations = self.solve_once()
+        step.reason, step.iterations = self._solve(line, step, control, predicted)
         step.iterations += predicted
         step.why = (problem.inadmissible() or "").rstrip(".") if step.reason > 0 else ""
         if control is not None and step.reason > 0 and not step.why and not control.reached:
             step.why = control.shortfall()  # a force off its tolerance: the step is cut
+
+    def _solve(self, line: _Timeline, step: _Step, control, predicted: int) -> tuple[int, int]:
+        """The attempt's Newton solves (SNES reason, iterations): under force control to the
+        force; a held step, unpredicted and uncut, after an easy held one from the Jacobian
+        kept (jacobian_carry); else one solve. With hold_factor_reuse, a held step's Newton
+        solves run on the kept LU factors (FactorReuse.hold), every other solve on its own."""
+        held = control is None and _held(line.history, step.t, step.t_new)
+        if self.factor is not None:
+            self.factor.hold(held)
+        try:
+            if control is not None:
+                return self._solve_to_force(control, step.t_new)
+            if self._kept and not predicted and step.cuts == step.rejected == 0 and held:
+                return self._solve_from_kept()
+            return self.solve_once()
+        finally:
+            if self.factor is not None:
+                self.factor.hold(False)  # the predictor and other solves factorise as before
 
     def _predict(self, step: _Step) -> None:
         """The tangent predictor of the attempt, with the accepted state's Jacobian: solved by
@@ -712,24 +740,39 @@ class FactorReuse:
     operator's values (the mat-vecs use the operator as assembled). The second runs at the end
     of KSPSolve, before SNES reads the outcome. The factors are solver state, never saved: a
     resumed run starts with fresh ones.
+
+    `held_only` (StepOptions.hold_factor_reuse): the KSP is the direct route's (preonly LU,
+    every matrix factorised) except during a held step's Newton solves, for which `hold`
+    switches it to flexible GMRES on the kept factors and back (`linear.use_kept_factors`).
     """
 
-    def __init__(self, snes: PETSc.SNES, limit: int):
+    def __init__(self, snes: PETSc.SNES, limit: int, held_only: bool = False):
         if not limit >= 1:
             raise ValueError(f"the Krylov limit must be >= 1, got {limit}")
         self.limit = limit
+        #: StepOptions.hold_factor_reuse: the factors are kept for Newton's solves in held
+        #: steps only (`hold`); every other solve is the direct route's own (preonly LU).
+        self.held_only, self._active = held_only, not held_only
         #: Factorisations done; solves finished by a new one after `limit` iterations.
         self.factorisations = self.fallbacks = 0
         #: Solves preconditioned by the factors of an older matrix than the one solved.
         self.kept = 0
         self._fresh, self._state, self._last = True, None, 0
-        ksp = snes.getKSP()
+        self._ksp = ksp = snes.getKSP()
         self._pc = ksp.getPC()
         ksp.setPreSolve(self._presolve)
         ksp.setPostSolve(self._postsolve)
 
+    def hold(self, held: bool) -> None:
+        """With `held_only`: the coming solves are a held step's Newton solves (True: FGMRES
+        on the kept factors, `linear.use_kept_factors`) or not (False: preonly LU, each matrix
+        factorised). Without it, nothing: the factors serve every solve."""
+        if self.held_only and held != self._active:
+            self._active = held
+            use_kept_factors(self._ksp, self.limit, held)
+
     def _presolve(self, ksp: PETSc.KSP, b: PETSc.Vec, x: PETSc.Vec) -> None:
-        renew = self._fresh or self._last > self.limit
+        renew = self._fresh or self._last > self.limit or not self._active
         self._pc.setReusePreconditioner(not renew)
         if renew:
             self._factored(ksp)
@@ -1005,10 +1048,13 @@ class _Factors:
 
 
 def _kept_factor_gmres(comm, pc: PETSc.PC, rtol: float, max_it: int) -> PETSc.KSP:
-    """GMRES (no options prefix: the scene's PETSc options do not reach it) preconditioned on
-    the right by `pc`'s current factors, so that it measures the true residual."""
+    """Flexible GMRES (no options prefix: the scene's PETSc options do not reach it)
+    preconditioned on the right by `pc`'s current factors, so that it measures the true
+    residual. Flexible: it builds the solution from the preconditioned vectors it keeps, where
+    GMRES applies the factors once more at the end (a pair of triangular solves per predictor;
+    the same iterates in exact arithmetic)."""
     ksp = PETSc.KSP().create(comm)
-    ksp.setType(PETSc.KSP.Type.GMRES)
+    ksp.setType(PETSc.KSP.Type.FGMRES)
     ksp.setGMRESRestart(max_it)
     ksp.setPCSide(PETSc.PC.Side.RIGHT)
     ksp.setTolerances(rtol=rtol, atol=0.0, max_it=max_it)
