@@ -115,13 +115,13 @@ def use_kept_factors(ksp: PETSc.KSP, limit: int, kept: bool) -> None:
     the solution from them, where GMRES right-preconditioned applies the LU once more at the
     end: a pair of triangular solves fewer per solve (the same iterates in exact
     arithmetic). The LU (the PC and its factors) is the same object in both."""
-    if kept:
-        most = 2 * limit
+    if kept:  # kept_factor_options' settings, flexible
+        o = kept_factor_options(limit)
         ksp.setType(PETSc.KSP.Type.FGMRES)
-        ksp.setGMRESRestart(most)
+        ksp.setGMRESRestart(o["ksp_gmres_restart"])
         ksp.setPCSide(PETSc.PC.Side.RIGHT)
         ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
-        ksp.setTolerances(rtol=KSP_RTOL, atol=_KRYLOV["ksp_atol"], max_it=most)
+        ksp.setTolerances(rtol=o["ksp_rtol"], atol=o["ksp_atol"], max_it=o["ksp_max_it"])
     else:
         ksp.setType(PETSc.KSP.Type.PREONLY)
         ksp.setPCSide(PETSc.PC.Side.LEFT)

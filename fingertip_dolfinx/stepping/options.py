@@ -250,15 +250,16 @@ def check_factor_reuse(limit: int, linear: str, petsc_options: dict | None = Non
     which the kept factorisation's hook replaces; and inexact solves cost this contact Newton
     iterations and cuts (2D line load, ksp_rtol 1e-6: 98 iterations and a cut against 89;
     docs/benchmarks/solvers-3d.md)."""
+    key = where.rsplit(".", 1)[-1]  # factor_reuse or hold_factor_reuse: the fix names it
     if limit > 0 and linear != "direct":
         raise InputError(where, f"keeps the direct route's LU factorisation, but the linear "
                          f"solver is {linear!r}.",
-                         'use factor_reuse = 0 with linear = "iterative", or linear = "direct".')
+                         f'use {key} = 0 with linear = "iterative", or linear = "direct".')
     ew = (petsc_options or {}).get("snes_ksp_ew", False)
     if limit > 0 and str(ew).lower() not in ("false", "0", "no"):
         raise InputError(where, "solves every Newton iteration to 1e-10, which inexact "
                          "Newton (solver.snes_ksp_ew) would loosen.",
-                         "drop solver.snes_ksp_ew, or set factor_reuse = 0.")
+                         f"drop solver.snes_ksp_ew, or set {key} = 0.")
 
 
 @dataclass
