@@ -156,7 +156,14 @@ def time_assembly(scene, out: Path, repeats: int) -> None:
     R_c = fem.form(contact, jit_options=problem.jit_options)
     J_c = fem.form(ufl.derivative(contact, problem.u), jit_options=problem.jit_options)
     lifting = job.stepper.residual  # stepping.residual.UnliftedResidual
-    calls = {"Jacobian": lambda: jacobian(snes, nonlinear.x, J, P, *args, **(kargs or {})),
+    reuse = job.stepper.reuse  # the scene's JacobianReuse would keep the first Jacobian
+
+    def assemble_jacobian():
+        if reuse is not None:
+            reuse.start()
+        jacobian(snes, nonlinear.x, J, P, *args, **(kargs or {}))
+
+    calls = {"Jacobian": assemble_jacobian,
              "residual": lambda: residual(snes, nonlinear.x, b, *rargs, **(rkargs or {})),
              "residual, DOLFINx's (lifted)": lambda: lifting.assemble_lifted(snes, nonlinear.x,
                                                                              b),
@@ -168,7 +175,7 @@ def time_assembly(scene, out: Path, repeats: int) -> None:
         print(f"assembly, quadrature degree {scene.model.quadrature_degree}, "
               f"{job.fm.mesh.topology.index_map(3).size_global} cells, {job.dofs} dofs, "
               f"{comm.size} rank(s), min over {repeats} calls (wall s, CPU s per rank): "
-              + "; ".join(f"{name} {w:.3f}, {', '.join(f'{c:.3f}' for c in cpu)}"
+              + "; ".join(f"{name} {w:.4f}, {', '.join(f'{c:.4f}' for c in cpu)}"
                           for name, (w, cpu) in times.items())
               + f"; load average {os.getloadavg()[0]:.2f}")
 

@@ -16,7 +16,8 @@ Wall seconds on rank 0 and CPU seconds per rank (the machine is shared: compare 
     mpiexec -n 2 .venv/bin/python benchmarks/mumps_3d.py --only default metis blr-1e-8
     mpiexec -n 2 .venv/bin/python benchmarks/mumps_3d.py --only default ldlt --pressure 5e-4
 
-Configurations (PETSc options under the KSP's prefix): `CONFIGS`.
+Configurations (PETSc options under the KSP's prefix): `CONFIGS` (MUMPS) and `OTHERS`
+(SuperLU_DIST, in double and in single precision).
 """
 
 import os
@@ -62,11 +63,22 @@ CONFIGS = {
 #: approximate. ICNTL(12) = 2: the compressed ordering for saddle points; CNTL(1) = 0: no
 #: pivoting (static).
 SYMMETRIC = {"ldlt", "ldlt-compressed", "ldlt-nopivot"}
+#: Other factorisations of the same J, for comparison (full PETSc options): SuperLU_DIST's LU
+#: in double precision, and in single precision (`pc_precision single`, PETSc's only mixed
+#: precision factorisation in this build: its MUMPS has no single-precision library) inside
+#: flexible GMRES, which solves with J itself to 1e-10 on the true residual.
+OTHERS = {
+    "superlu_dist": {"pc_factor_mat_solver_type": "superlu_dist"},
+    "superlu_dist-single": {"pc_factor_mat_solver_type": "superlu_dist", "pc_precision": "single",
+                            "ksp_type": "fgmres", "ksp_rtol": 1e-10, "ksp_atol": 0.0,
+                            "ksp_max_it": 50, "ksp_gmres_restart": 50},
+}
 
 
 def main():
     parser = scene_parser(__doc__, "line-load-3d", out=False)
-    parser.add_argument("--only", nargs="+", default=list(CONFIGS), choices=list(CONFIGS))
+    parser.add_argument("--only", nargs="+", default=list(CONFIGS),
+                        choices=[*CONFIGS, *OTHERS])
     parser.add_argument("--refactor", type=int, default=2,
                         help="numerical factorisations timed per configuration")
     parser.add_argument("--solves", type=int, default=1,
@@ -85,8 +97,8 @@ def main():
               f"{os.getloadavg()[0]:.2f}; wall s (rank 0) / CPU s (per rank)")
     for name in ["default", *[n for n in args.only if n != "default"]]:
         sign = signs if name in SYMMETRIC else None
-        x, line = factor_and_solve(name, CONFIGS[name], J, b, assemble, args.refactor, sign,
-                                   args.solves)
+        x, line = factor_and_solve(name, CONFIGS.get(name, {}), J, b, assemble, args.refactor,
+                                   sign, args.solves)
         reference = x.copy() if reference is None else reference
         dx = x.copy()
         dx.axpy(-1.0, reference)
@@ -144,7 +156,7 @@ def factor_and_solve(name: str, mumps: dict, J, b, assemble, refactor: int, sign
     prefix = f"mumps_{name.replace('-', '_').replace('.', '_')}_"
     db = PETSc.Options()
     options = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps",
-               **{f"mat_mumps_{k}": v for k, v in mumps.items()}}
+               **{f"mat_mumps_{k}": v for k, v in mumps.items()}, **OTHERS.get(name, {})}
     if signs is not None:
         options |= SYMMETRIC_KSP
         rebuild = assemble
@@ -174,24 +186,28 @@ def factor_and_solve(name: str, mumps: dict, J, b, assemble, refactor: int, sign
     r = b.duplicate()
     J.mult(x, r)
     r.axpy(-1.0, b)
-    F = ksp.getPC().getFactorMatrix()
-    entries, flops = F.getMumpsInfog(29), F.getMumpsRinfog(3)
-    memory = (F.getMumpsInfog(21), F.getMumpsInfog(22))  # MB: max and total over ranks
-    ordering = F.getMumpsInfog(7)
-    extra = f", {ksp.getIterationNumber()} GMRES iteration(s)" if signs is not None else ""
-    extra += (f"; delayed pivots INFOG(13) {F.getMumpsInfog(13)}, negative pivots INFOG(12) "
-               f"{F.getMumpsInfog(12)}")
+    krylov = signs is not None or name in OTHERS
+    extra = f", {ksp.getIterationNumber()} Krylov iteration(s)" if krylov else ""
+    if name not in OTHERS:
+        extra = _mumps_figures(ksp.getPC().getFactorMatrix()) + extra
     num_wall = min(w for w, _ in numeric) if numeric else float("nan")
     num_cpu = np.array([c for _, c in numeric]).min(axis=0) if numeric else [float("nan")]
-    line = (f"{name:10s} (INFOG(7) ordering {ordering}): analysis+factorisation "
-            f"{_fmt(first)}; factorisation {num_wall:.2f} / "
+    line = (f"{name:10s}: analysis+factorisation {_fmt(first)}; factorisation {num_wall:.2f} / "
             f"{', '.join(f'{c:.2f}' for c in num_cpu)}; solve {_fmt(solve)}; "
-            f"factor entries {entries:.3g}, flops {flops:.3g}, memory max/total {memory[0]}/"
-            f"{memory[1]} MB; residual {r.norm() / b.norm():.1e}{extra}")
+            f"residual {r.norm() / b.norm():.1e}{extra}")
     ksp.destroy()
     for k in options:
         db.delValue(prefix + k)
     return x, line
+
+
+def _mumps_figures(F) -> str:
+    """MUMPS's own figures of a factorisation: ordering, factor entries, flops, memory (MB,
+    the larger rank's and the total), delayed and negative pivots."""
+    return (f"; INFOG(7) ordering {F.getMumpsInfog(7)}, factor entries {F.getMumpsInfog(29):.3g}"
+            f", flops {F.getMumpsRinfog(3):.3g}, memory max/total {F.getMumpsInfog(21)}/"
+            f"{F.getMumpsInfog(22)} MB; delayed pivots INFOG(13) {F.getMumpsInfog(13)}, "
+            f"negative pivots INFOG(12) {F.getMumpsInfog(12)}")
 
 
 #: The Krylov wrapper of a symmetric factorisation (SYMMETRIC).

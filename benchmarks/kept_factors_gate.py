@@ -1,0 +1,126 @@
+"""Benchmark: the LU factors kept for Newton's quadratic phase in every step, not only in the hold.
+
+The 3D line load keeps the LU factors in its held steps (`steps.hold_factor_reuse`: flexible
+GMRES on the factors of an older Jacobian, every solve exact), while each ramp iteration
+factorises its Jacobian (42 of the whole run's 45 factorisations). Keeping them everywhere
+(`steps.factor_reuse`) did not pay in the ramp: the contact set moves between iterates and
+GMRES needs many iterations. This script asks whether it pays in the ramp's *last* iterations,
+where Newton is quadratic and the Jacobian should barely move: a SNES monitor switches the
+solver to FGMRES on the kept factors (`linear.use_kept_factors`, the hold's own switch) for
+the solve that follows an iteration whose residual norm fell to at most `--theta` times the
+previous iterate's, and back to a factorisation otherwise; held steps keep their factors as
+the scene says. Every solve stays exact (FGMRES to 1e-10 on the true residual, or the
+fallback's factorisation after 2 × the hold's limit), so Newton's iterates are the direct
+route's. `steps.jacobian_reuse = 0` (set below) lets Newton reassemble in these iterations:
+with the scene's 0.05 they would be chord iterations on the kept matrix, which the FGMRES
+solves in one iteration.
+
+Measured 2026-11-27, 08:36-08:49 UTC, the runs back to back, each alone on the machine (load
+from its own 2 ranks; today's machine ran the scene's command in 227 s, yesterday's idle
+measurement was 194 s: compare the counts and the rows with each other):
+
+| line-load-3d, 2 ranks | steps | Newton | LU | kept solves (fallbacks) | triangular solves | wall |
+| --- | ---: | ---: | ---: | ---: | ---: | ---: |
+| the scene (`--off`) | 16 | 73 | 45 (150 s) | 6 (0) | 241 (21 s) | 227 s |
+| gate 0.2, `jacobian_reuse = 0` | 16 | 69 | 36 (124 s) | 23 (5) | 585 (51 s) | 238 s |
+| gate 0.05, `jacobian_reuse = 0` | 16 | 69 | 44 (158 s) | 12 (2) | 367 (35 s) | 259 s |
+
+(Per step, the gated runs: 7 3 4 4 5 7 8 5 8 5 in the ramp, 2 2 2 3 2 2 in the hold, against
+the scene's 8 3 4 4 5 7 9 6 8 5 and 2 2 2 4 2 2.) Even after a 20-fold cut of the residual
+the solves on the last iteration's factors took 4-30 FGMRES iterations, and 30 (the cap:
+a factorisation follows) in a third of them: between two iterates of the ramp the Jacobian
+still differs in the contact rows of the points that switch. The factorisations saved are
+paid for in triangular solves. The 2D line load (`--scene line-load-1pct --set
+steps.hold_factor_reuse=15`, one rank) says the same: 89 Newton iterations and 72
+factorisations with the hold's factors alone, 91 and 82 (gate 0.2) or 91 and 91 (gate 0.05)
+with the gate. This script, run again after the table (θ = 0.2, 08:53-08:58 UTC, pictures
+off), repeated its row: 69 Newton iterations, 36 factorisations, 585 triangular solves, 5
+fallbacks. Not kept: no scene key.
+
+    mpiexec -n 2 python benchmarks/kept_factors_gate.py [--off] [--theta 0.2] [--out DIR]
+    python benchmarks/kept_factors_gate.py --scene line-load-1pct --set steps.hold_factor_reuse=15
+"""
+
+import time
+
+from mpi4py import MPI
+from petsc4py import PETSc
+from timing import scene_and_out, scene_parser
+
+import fingertip_dolfinx  # noqa: F401  (sets up the DOLFINx wheel)
+
+# isort: split
+from fingertip_dolfinx.outputs import read_csv
+from fingertip_dolfinx.runner import Run
+from fingertip_dolfinx.stepping.linear import use_kept_factors
+
+
+class ContractionGate:
+    """Kept factors for the solve after an iteration that cut the residual to ≤ θ of the
+    previous iterate's, in every step; held steps as the scene (FactorReuse.hold)."""
+
+    def __init__(self, stepper, theta: float):
+        self.factor, self.theta = stepper.factor, theta
+        self.held, self.previous, self.solves = False, None, []
+        self._hold = self.factor.hold
+        self.factor.hold = self.hold  # the stepper's call at each solve's start and end
+        stepper.snes.setMonitor(self.monitor)
+        self.ksp = stepper.snes.getKSP()
+        self.ksp.setPostSolve(self.post_solve)
+
+    def hold(self, held: bool) -> None:
+        self.held, self.previous = held, None
+        self._switch(held)
+
+    def monitor(self, snes, its: int, norm: float) -> None:
+        """After each iteration (and before the first): the next solve's mode."""
+        fast = its >= 1 and self.previous is not None and norm <= self.theta * self.previous
+        self.previous = norm
+        self._switch(self.held or fast)
+
+    def _switch(self, kept: bool) -> None:
+        if kept != self.factor._active:
+            self.factor._active = kept
+            use_kept_factors(self.ksp, self.factor.limit, kept)
+
+    def post_solve(self, ksp, b, x) -> None:
+        kept, its = self.factor._active, ksp.getIterationNumber()
+        self.factor._postsolve(ksp, b, x)
+        if kept:
+            self.solves.append(its)
+
+
+def main():
+    parser = scene_parser(__doc__, "line-load-3d")
+    parser.add_argument("--theta", type=float, default=0.2,
+                        help="keep the factors after a cut of the residual to <= theta")
+    parser.add_argument("--off", action="store_true", help="the scene as it is")
+    args = parser.parse_args()
+    comm = MPI.COMM_WORLD
+    overrides = args.overrides + ([] if args.off else ["steps.jacobian_reuse=0"])
+    scene, out = scene_and_out(args, comm, overrides)
+    PETSc.Log.begin()
+    job = Run(scene, out, comm, resume=False, progress=False)
+    if job.stepper.factor is None:
+        raise SystemExit("the scene keeps no factors: add --set steps.hold_factor_reuse=15")
+    gate = None if args.off else ContractionGate(job.stepper, args.theta)
+    wall = time.perf_counter()
+    job.run()
+    wall = time.perf_counter() - wall
+    events = {e: PETSc.Log.Event(e).getPerfInfo() for e in ("MatLUFactorNum", "MatSolve")}
+    summary = job.finish(True, None, wall)
+    if comm.rank != 0:
+        return
+    h = read_csv(out / "history.csv")
+    factor = job.stepper.factor
+    print(f"steps {summary['time_steps']}, Newton iterations {summary['newton_iterations']}, "
+          + ", ".join(f"{e} {int(i.get('count', 0))} ({i.get('time', 0.0):.1f} s)"
+                      for e, i in events.items())
+          + f", kept solves {factor.kept}, fallbacks {factor.fallbacks}; stepping {wall:.1f} s")
+    print("per step:", " ".join(str(int(i)) for i in h["newton_iterations"]))
+    if gate is not None:
+        print("FGMRES iterations of the solves on kept factors:", gate.solves)
+
+
+if __name__ == "__main__":
+    main()
