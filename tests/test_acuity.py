@@ -302,6 +302,24 @@ def test_the_3d_figure_has_a_row_per_task_that_ran(tmp_path):
     assert heights[1] < 0.6 * heights[0]
 
 
+def test_the_2d_figure_has_a_panel_per_task_that_ran(tmp_path):
+    """Without the gap runs the figure is d′ and the grating's profiles, not a third, empty
+    panel: two panels of the same size, two thirds of the width."""
+    from matplotlib.image import imread
+
+    from fingertip_dolfinx.studies.acuity import plot_acuity, summarise
+
+    x = np.linspace(-6.0, 6.0, 41)
+    counts = {k: (x, np.cos(x * (i + 1)) + 1.0) for i, k in enumerate(
+        ("grating-w1-A", "grating-w1-B", "gap-g0", "gap-g1"))}
+    widths = []
+    for gaps in ((1.0,), ()):
+        runs = {k: v for k, v in counts.items() if gaps or not k.startswith("gap")}
+        plot_acuity(summarise(runs, (1.0,), gaps), runs, tmp_path / "acuity.png")
+        widths.append(imread(tmp_path / "acuity.png").shape[1])
+    assert abs(widths[1] / widths[0] - 2 / 3) < 0.01, widths
+
+
 def test_counts_up_to_a_time_are_the_counts_of_the_samples_up_to_it():
     """`until` counts a run's spikes over 0..until only: the same as the samples cut there, and
     never more than over the whole run (a pair read before its end is compared over the time

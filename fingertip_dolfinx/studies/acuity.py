@@ -280,11 +280,12 @@ def _write_tables(out: Path, counts: dict, result: dict) -> None:
 
 def plot_acuity(result: dict, counts: dict, path: Path) -> None:
     """d′ against width per task with the criterion and the measured thresholds; the count
-    profiles of the two stimuli of one grating and one gap."""
+    profiles of the two stimuli of one grating and one gap (a panel per task that was run)."""
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(12.0, 3.9), layout="constrained")
-    ax, grating, gap = fig.subplots(1, 3)
+    run = [name for name in ("grating", "gap") if result[name]["widths_mm"]]
+    fig = Figure(figsize=(4.0 * (1 + len(run)), 3.9), layout="constrained")
+    ax, *panels = fig.subplots(1, 1 + len(run), squeeze=False)[0]
     for name, colour in (("grating", "C0"), ("gap", "C1")):
         t = result[name]
         if not t["widths_mm"]:
@@ -299,12 +300,8 @@ def plot_acuity(result: dict, counts: dict, path: Path) -> None:
     ax.set(xlabel="ridge width or gap (mm)", ylabel="d′ of one SA1 row (dots: its offsets)",
            title="SA1 ideal observer, Poisson counts")
     ax.legend(fontsize=7)
-    for panel, name in ((grating, "grating"), (gap, "gap")):
-        sizes = result[name]["widths_mm"]
-        if not sizes:
-            panel.set_axis_off()
-            continue
-        w = min(sizes, key=lambda v: abs(v - 1.0))  # the one nearest 1 mm
+    for panel, name in zip(panels, run):
+        w = min(result[name]["widths_mm"], key=lambda v: abs(v - 1.0))  # the one nearest 1 mm
         if name == "grating":
             _profiles(panel, counts, f"grating-w{w:g}-A", f"grating-w{w:g}-B",
                       ("ridge at x = 0", "groove at x = 0"),
