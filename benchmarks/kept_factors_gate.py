@@ -62,13 +62,13 @@ class ContractionGate:
     def __init__(self, stepper, theta: float):
         self.factor, self.theta = stepper.factor, theta
         self.held, self.previous, self.solves = False, None, []
-        self._hold = self.factor.hold
         self.factor.hold = self.hold  # the stepper's call at each solve's start and end
         stepper.snes.setMonitor(self.monitor)
         self.ksp = stepper.snes.getKSP()
         self.ksp.setPostSolve(self.post_solve)
 
     def hold(self, held: bool) -> None:
+        """A Newton solve starts (held or not) or ends (False): no contraction seen yet."""
         self.held, self.previous = held, None
         self._switch(held)
 
@@ -79,11 +79,13 @@ class ContractionGate:
         self._switch(self.held or fast)
 
     def _switch(self, kept: bool) -> None:
+        """FGMRES on the kept factors (`kept`) or a factorisation per solve, as the hold's."""
         if kept != self.factor._active:
             self.factor._active = kept
             use_kept_factors(self.ksp, self.factor.limit, kept)
 
     def post_solve(self, ksp, b, x) -> None:
+        """FactorReuse's own post-solve (its fallback), and the iterations of a kept solve."""
         kept, its = self.factor._active, ksp.getIterationNumber()
         self.factor._postsolve(ksp, b, x)
         if kept:
