@@ -33,9 +33,14 @@ still differs in the contact rows of the points that switch. The factorisations 
 paid for in triangular solves. The 2D line load (`--scene line-load-1pct --set
 steps.hold_factor_reuse=15`, one rank) says the same: 89 Newton iterations and 72
 factorisations with the hold's factors alone, 91 and 82 (gate 0.2) or 91 and 91 (gate 0.05)
-with the gate. This script, run again after the table (θ = 0.2, 08:53-08:58 UTC, pictures
-off), repeated its row: 69 Newton iterations, 36 factorisations, 585 triangular solves, 5
-fallbacks. Not kept: no scene key.
+with the gate. The gated 2D run is not repeatable to the count: five runs gave 91 Newton
+iterations and 82-83 factorisations (541-557 triangular solves) four times and 95 and 70
+(492) once, 7.4-8.0 s of stepping against the hold-only run's 6.6 s; with
+`OPENBLAS_NUM_THREADS=1` two runs gave the same 91, 82 and 550. OpenBLAS's threads change the
+rounding inside MUMPS, and the gate's discrete choices (a solve at the cap or one iteration
+under it) carry that into the path. This script, run again after the table (θ = 0.2,
+08:53-08:58 UTC, pictures off), repeated the 3D row: 69 Newton iterations, 36
+factorisations, 585 triangular solves, 5 fallbacks. Not kept: no scene key.
 
     mpiexec -n 2 python benchmarks/kept_factors_gate.py [--off] [--theta 0.2] [--out DIR]
     python benchmarks/kept_factors_gate.py --scene line-load-1pct --set steps.hold_factor_reuse=15
