@@ -315,20 +315,21 @@ class Checkpoint:
         if path is None:
             raise InputError(where, f"there is no checkpoint to resume from ({self.path}).",
                              "run without --resume to start afresh.")
-        data = np.load(path)
-        if int(data["ranks"]) != self.comm.size:
-            raise InputError(where, f"the run was made on {int(data['ranks'])} ranks, this one "
-                             f"has {self.comm.size}.",
-                             f"resume with mpiexec -n {int(data['ranks'])}.")
-        for name, array in state.items():
-            if name not in data or data[name].shape != array.shape:
-                raise InputError(where, f"the checkpoint does not fit this scene's model ({name}).",
-                                 "resume with the same scene and options, or start afresh.")
-            array[:] = data[name]
-        previous = (float(data["previous_time"]),
-                    [data[f"previous_{i}"] for i in range(n_unknowns)])
-        return CheckpointState(float(data["time"]), float(data["dt"]), int(data["steps"]),
-                               previous)
+        with np.load(path) as data:  # closed after reading, on every path
+            if int(data["ranks"]) != self.comm.size:
+                raise InputError(where, f"the run was made on {int(data['ranks'])} ranks, this "
+                                 f"one has {self.comm.size}.",
+                                 f"resume with mpiexec -n {int(data['ranks'])}.")
+            for name, array in state.items():
+                if name not in data or data[name].shape != array.shape:
+                    raise InputError(where, "the checkpoint does not fit this scene's model "
+                                     f"({name}).",
+                                     "resume with the same scene and options, or start afresh.")
+                array[:] = data[name]
+            previous = (float(data["previous_time"]),
+                        [data[f"previous_{i}"] for i in range(n_unknowns)])
+            return CheckpointState(float(data["time"]), float(data["dt"]), int(data["steps"]),
+                                   previous)
 
 
 def common_time(held: list[list[float]]) -> float | None:

@@ -129,6 +129,47 @@ def test_a_kill_between_the_ranks_checkpoints_resumes_from_the_step_all_hold(tmp
         checkpoint.stored()
 
 
+def test_a_checkpoint_of_another_model_or_rank_count_is_refused_and_left_closed(tmp_path):
+    """Loading refuses arrays of another shape or name (another scene's model) and a run made
+    on another number of ranks, naming the fix, and leaves no descriptor of the file open
+    behind a refusal (whose traceback the caller may keep); a fitting load fills the state."""
+    comm = _RankZeroOfTwo(other=[0.1])
+    checkpoint = Checkpoint(tmp_path, comm)
+    checkpoint.folder.mkdir()
+    checkpoint.save(0.1, 0.1, 1, {"u": np.full(3, 0.1)}, (0.0, [np.zeros(3)]))
+    refusals = []
+    for state, match in (({"u": np.zeros(4)}, r"does not fit this scene's model \(u\)"),
+                         ({"p": np.zeros(3)}, r"does not fit this scene's model \(p\)")):
+        with pytest.raises(InputError, match=match) as refused:
+            checkpoint.load(state, 1)
+        refusals.append(refused)  # the tracebacks kept, as a caller reporting them would
+    comm.size = 3
+    with pytest.raises(InputError, match="resume with mpiexec -n 2") as refused:
+        checkpoint.load({"u": np.zeros(3)}, 1)
+    refusals.append(refused)
+    assert not _open_descriptors(checkpoint.path)
+    comm.size = 2
+    checkpoint.save(0.1, 0.1, 1, {"u": np.full(3, 0.1)}, (0.0, [np.zeros(3)]))
+    u = np.zeros(3)
+    assert checkpoint.load({"u": u}, 1).steps == 1
+    np.testing.assert_array_equal(u, 0.1)
+
+
+def _open_descriptors(path: Path) -> list[str]:
+    """This process's open file descriptors on `path` (Linux: /proc/self/fd)."""
+    fds = Path("/proc/self/fd")
+    if not fds.is_dir():
+        pytest.skip("needs /proc/self/fd")
+    found = []
+    for fd in fds.iterdir():
+        try:
+            if os.readlink(fd) == str(path.resolve()):
+                found.append(fd.name)
+        except OSError:  # closed while listed
+            continue
+    return found
+
+
 def test_what_a_resume_may_change():
     """Later end times, more cycles, output times after the checkpoint, pictures: allowed.
     Anything that changes d(t) before the checkpoint, the materials, the mesh, the steps, or
