@@ -273,3 +273,25 @@ def test_the_force_history_names_a_half_models_force_and_draws_the_force_target(
                        tmp_path / "g.png")
     assert drawn[-1].axes[1].get_ylabel() == "force (mN)"
     assert len(drawn[-1].axes[1].get_lines()) == 1
+
+
+def test_the_3d_friction_figure_names_a_half_models_areas_and_forces(tmp_path, monkeypatch):
+    """shear-3d and slide-3d are half models: history.csv's areas and forces are the half's
+    own (the mirror image carries as much again), so the friction figure's axes say so, as
+    the force history's do; a whole model's axes name the plain quantities."""
+    from matplotlib.figure import Figure
+
+    from fingertip_dolfinx.plotting.figures import plot_friction_3d
+
+    drawn = []
+    monkeypatch.setattr(Figure, "savefig", lambda fig, *a, **k: drawn.append(fig))
+    t = np.array([0.5, 1.0])
+    history = {"time_s": t, "force_N": 0.4 * t, "tangential_x_force_N": 0.0 * t,
+               "tangential_z_force_N": 0.1 * t, "contact_area_mm2": 2.0 * t,
+               "stick_area_mm2": t}
+    for half in (True, False):
+        plot_friction_3d(history, tmp_path / "friction.png", 0.5, half=half)
+        area, force = (" ".join(ax.get_ylabel().split()) for ax in drawn[-1].axes)
+        assert area == ("area on the half model (mm², reference)" if half else
+                        "area (mm², reference)")
+        assert force == "force on the half model (N)" if half else "force (N)"

@@ -256,12 +256,13 @@ def _coulomb_panel(ax, t, normal, tangential, mu: float, quantity: str, name: st
 
 
 def plot_friction_3d(history: dict, path: Path, mu: float, title: str = "",
-                     stick_slip: dict | None = None) -> None:
+                     stick_slip: dict | None = None, half: bool = False) -> None:
     """A 3D run with friction, from history.csv (and stick_slip.csv). At the top, given
     `stick_slip`: the stick/slip map along the finger (z against time, on the line of
     surface_along.csv). Then the contact area and its sticking part against time; below, the
     pressure's normal force, the friction's tangential share and Coulomb's bound μ times the
-    former (`_coulomb_forces_3d`)."""
+    former (`_coulomb_forces_3d`). `half`: the areas and forces are a half model's (history.csv
+    holds the half's own; its mirror image carries as much again), and the labels say so."""
     if stick_slip is None:
         fig = Figure(figsize=(6.4, 6.4))
         ax_a, ax_f = fig.subplots(2, 1, sharex=True, height_ratios=(1, 1))
@@ -281,11 +282,14 @@ def plot_friction_3d(history: dict, path: Path, mu: float, title: str = "",
                                ("stick_area_mm2", STATE_COLOURS[2], "sticking")):
         ax_a.plot(t, np.concatenate([[0.0], history[key]]), "o-", ms=3, color=colour,
                   label=label)
-    ax_a.set_ylabel("area (mm², reference)")
+    # a half model's labels on two lines: the panels are too short for one
+    ax_a.set_ylabel("area on the half model\n(mm², reference)" if half
+                    else "area (mm², reference)")
     ax_a.legend(fontsize=8)
     ax_a.grid(alpha=0.3)
     ax_a.set_title(title)
-    _coulomb_panel(ax_f, t, *_coulomb_forces_3d(history), mu, "force (N)",
+    _coulomb_panel(ax_f, t, *_coulomb_forces_3d(history), mu,
+                   "force on the\nhalf model (N)" if half else "force (N)",
                    "friction's tangential share |(F_x − F_p,x, F_z − F_p,z)|"
                    if "pressure_normal_force_N" in history else "tangential force |(F_x, F_z)|",
                    "pressure's normal force F_p,y" if "pressure_normal_force_N" in history
