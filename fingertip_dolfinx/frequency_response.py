@@ -329,7 +329,7 @@ def _sweep(solver, transfer, sites, freqs, out: Path, comm, show) -> tuple[list,
 def _figures(rows, site_rows, curves, population, scene, options, pressing, summary,
              out: Path) -> None:
     """impedance.png, receptor_transfer_<class>.png and thresholds.png (rank 0)."""
-    plot_impedance(rows, out / "impedance.png", scene.name)
+    plot_impedance(rows, out / "impedance.png", scene.name, summary["force_unit"])
     if not isinstance(scene.section, Fingertip3D):  # 3D sites are not a row along x
         plot_receptor_transfer(site_rows, out, population, scene.name)
     plot_threshold_curves(curves, out / "thresholds.png", title=(
@@ -554,17 +554,19 @@ def _printer(progress: bool, comm):
 # --- figures ----------------------------------------------------------------------------------
 
 
-def plot_impedance(rows: list[dict], path: Path, title: str = "") -> Path:
+def plot_impedance(rows: list[dict], path: Path, title: str = "",
+                   force: str = "N/mm") -> Path:
     """Bode plot of the driving-point impedance Z(ω): |Z| and its phase at the computed
     frequencies (markers only: a line between two samples would claim a curve that was not
     computed, across resonances), log axes; the resolved resonances as vertical lines, and the
-    bands where the grid does not resolve a peak shaded, with the warning below the axes."""
+    bands where the grid does not resolve a peak shaded, with the warning below the axes.
+    `force`: the force's unit (`force_unit`), which gives |Z|'s: force per mm/s."""
     f = np.array([r["frequency_Hz"] for r in rows])
     found = resonances(rows)
     fig = Figure(figsize=(6.4, 6.4))
     top, bottom = fig.subplots(2, 1, sharex=True)
     top.loglog(f, [r["Z_abs_Ns_per_mm2"] for r in rows], "o", ms=4, label="computed")
-    top.set_ylabel("|Z| (N·s/mm per mm)")
+    top.set_ylabel(impedance_label(force))
     top.set_title(f"{title}: driving-point impedance" if title else "driving-point impedance")
     bottom.semilogx(f, [r["Z_phase_deg"] for r in rows], "o", ms=4)
     bottom.set_ylabel("phase of Z (°)")
@@ -592,6 +594,14 @@ def plot_impedance(rows: list[dict], path: Path, title: str = "") -> Path:
         fig.text(0.5, 0.015, warning, ha="center", fontsize=8, color="tab:red", wrap=True)
     fig.savefig(path, dpi=120)
     return path
+
+
+def impedance_label(force: str) -> str:
+    """|Z|'s axis label for the force unit `force_unit` gives: Z = δf/(iω δd) is a force per
+    mm/s, so N·s/mm per mm of thickness in plane strain and N·s/mm in 3D, a half model's named."""
+    if force == "N/mm":
+        return "|Z| (N·s/mm per mm)"
+    return "|Z| of the half model (N·s/mm)" if "half" in force else "|Z| (N·s/mm)"
 
 
 def plot_receptor_transfer(rows: list[dict], out: Path, population,
