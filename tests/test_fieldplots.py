@@ -295,3 +295,30 @@ def test_the_3d_friction_figure_names_a_half_models_areas_and_forces(tmp_path, m
         assert area == ("area on the half model (mm², reference)" if half else
                         "area (mm², reference)")
         assert force == "force on the half model (N)" if half else "force (N)"
+
+
+def test_the_spacing_figure_keeps_every_bar_and_its_peak_in_view(tmp_path, monkeypatch):
+    """The profiles by spacing are shown over ±4 mm, enough for the spacings of the paper
+    (up to 4 mm: bar centres at ±2 mm); a wider spacing (10 mm: bars at ±5 mm, within the
+    profile's ±6 mm) widens the view, so its peaks under the bars are not cut off."""
+    from matplotlib.figure import Figure
+
+    from fingertip_dolfinx.plotting.figures import plot_spacing_profiles
+
+    drawn = []
+    monkeypatch.setattr(Figure, "savefig", lambda fig, *a, **k: drawn.append(fig))
+    x = np.linspace(-6.0, 6.0, 121)
+
+    def run(d):  # a strain bump of 0.5 mm under each bar centre
+        bump = np.exp(-((x - d / 2) / 0.5) ** 2) + np.exp(-((x + d / 2) / 0.5) ** 2)
+        return {"x_mm": x, "depth_mm": np.ones_like(x), "time_s": np.ones_like(x),
+                "e11": 1e-2 * bump, "e22": -1e-2 * bump, "e12": 5e-3 * bump,
+                "sed_MPa": 1e-4 * bump}
+
+    for spacings, edge in (((2.0, 4.0), 4.0), ((2.0, 10.0), 7.0)):
+        plot_spacing_profiles({d: run(d) for d in spacings}, tmp_path / "p.png", 1.0, 1.0)
+        for ax in drawn[-1].axes:
+            assert ax.get_xlim() == pytest.approx((-edge, edge))
+            for line in ax.get_lines()[::2]:  # the profiles (each followed by its bar ticks)
+                peak = line.get_xdata()[np.argmax(np.abs(line.get_ydata()))]
+                assert -edge < peak < edge

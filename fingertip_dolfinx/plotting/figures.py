@@ -406,9 +406,12 @@ def plot_spacing_profiles(runs: dict[float, dict], path: Path, time_s: float, de
             ax.plot([-d / 2, d / 2], [0.0, 0.0], "|", color=colour, ms=8)
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
+    # ±4 mm around the load axis, wider for a spacing that puts a bar centre within 2 mm of
+    # that edge: each bar and its flank stay in view (no peak cut off by the axis)
+    edge = max(4.0, max(runs) / 2 + 2.0)
     for ax in axes[1]:
         ax.set_xlabel("x (mm); ticks on the axis: bar centres")
-        ax.set_xlim(-4.0, 4.0)
+        ax.set_xlim(-edge, edge)
     handles, labels = axes[0, 0].get_legend_handles_labels()  # beside the panels: off the data
     fig.legend(handles, labels, loc="center right", fontsize=8)
     fig.suptitle(f"{title} at depth {depth_mm:g} mm, t = {time_s:g} s")
