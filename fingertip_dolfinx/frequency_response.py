@@ -70,7 +70,7 @@ from .harmonic_options import HarmonicOptions, parse_frequencies
 from .loading import RampHold, Vibration
 from .outputs import CsvLog, prepare_directory, write_json
 from .physics.kinematics import principal_log_strains
-from .plotting.figures import plain_log_ticks
+from .plotting.figures import fitted, plain_log_ticks
 from .post import DerivedFields, PointSampler, QuadratureProjection, accepted_stress
 from .problem import FingertipProblem
 from .scene import Scene, scene_record
@@ -567,7 +567,8 @@ def plot_impedance(rows: list[dict], path: Path, title: str = "",
     top, bottom = fig.subplots(2, 1, sharex=True)
     top.loglog(f, [r["Z_abs_Ns_per_mm2"] for r in rows], "o", ms=4, label="computed")
     top.set_ylabel(impedance_label(force))
-    top.set_title(f"{title}: driving-point impedance" if title else "driving-point impedance")
+    top.set_title(fitted(f"{title}: driving-point impedance" if title else
+                         "driving-point impedance", fig))
     bottom.semilogx(f, [r["Z_phase_deg"] for r in rows], "o", ms=4)
     bottom.set_ylabel("phase of Z (°)")
     bottom.set_yticks([-90, -45, 0, 45, 90])
@@ -627,18 +628,24 @@ def plot_receptor_transfer(rows: list[dict], out: Path, population,
         z[np.searchsorted(f, data["frequency_Hz"][mine]),
           np.searchsorted(x, data["x_mm"][mine])] = data[f"{quantity}_abs_per_um"][mine]
         z = np.ma.masked_where(~(z > 0), z)  # a zero amplitude has no colour on a log scale
-        mesh = ax.pcolormesh(_edges(x, log=False), _edges(f, log=True), z,
-                             norm=LogNorm(vmin=z.min(), vmax=z.max()), shading="flat")
+        name = quantity.replace("_", " ")
+        if z.count():
+            mesh = ax.pcolormesh(_edges(x, log=False), _edges(f, log=True), z,
+                                 norm=LogNorm(vmin=z.min(), vmax=z.max()), shading="flat")
+            fig.colorbar(mesh, ax=ax,
+                         label=f"{name} amplitude ({QUANTITIES[quantity][2]} per µm)")
+        else:  # none above zero (no first-order change, e.g. SED about rest): no log scale
+            ax.set(xlim=_edges(x, log=False)[[0, -1]], ylim=_edges(f, log=True)[[0, -1]])
+            ax.text(0.5, 0.5, f"{name}: zero (or not computed)\nat every site and frequency",
+                    transform=ax.transAxes, ha="center", va="center")
         ax.set_yscale("log")
         plain_log_ticks(ax, "y")
         ax.set_xlabel("x of the site (mm)")
         ax.set_ylabel("vibration frequency (Hz)")
         depths = ", ".join(f"{d:g}" for d in np.unique(data["depth_mm"][mine]))
-        name = quantity.replace("_", " ")
-        ax.set_title(f"{title}: {cls} sites ({depths} mm deep), {name} per µm of drive"
-                     if title else f"{cls} sites ({depths} mm deep), {name} per µm of drive",
-                     fontsize=9)
-        fig.colorbar(mesh, ax=ax, label=f"{name} amplitude ({QUANTITIES[quantity][2]} per µm)")
+        ax.set_title(fitted(f"{title}: {cls} sites ({depths} mm deep), {name} per µm of drive"
+                            if title else f"{cls} sites ({depths} mm deep), {name} per µm of "
+                            "drive", fig, 9), fontsize=9)
         fig.tight_layout()
         paths.append(out / f"receptor_transfer_{cls}.png")
         fig.savefig(paths[-1], dpi=120)

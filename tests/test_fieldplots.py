@@ -322,3 +322,54 @@ def test_the_spacing_figure_keeps_every_bar_and_its_peak_in_view(tmp_path, monke
             for line in ax.get_lines()[::2]:  # the profiles (each followed by its bar ticks)
                 peak = line.get_xdata()[np.argmax(np.abs(line.get_ydata()))]
                 assert -edge < peak < edge
+
+
+def _surface(title, path):
+    from fingertip_dolfinx.plotting.figures import plot_surface_profiles
+
+    x = np.linspace(-5.0, 5.0, 11)
+    plot_surface_profiles({"x_mm": x, "time_s": np.ones(11), "deflection_mm": -np.exp(-x**2)},
+                          path, title=f"{title}: across the finger")
+
+
+def _population_3d(title, path):  # one class (an SA1-only population): the narrowest figure
+    from fingertip_dolfinx.plotting.figures import plot_population_3d
+
+    x = np.linspace(-6.0, 6.0, 9)
+    plot_population_3d({"x_mm": x, "y_mm": -4.0 + 0 * x, "z_mm": 10.0 + x,
+                        "mean_rate_per_s": 10.0 + x, "class": np.array(["SA1"] * 9)},
+                       path, title)
+
+
+def _impedance(title, path):
+    from fingertip_dolfinx.frequency_response import plot_impedance
+
+    plot_impedance([{"frequency_Hz": f, "K_abs_N_per_mm2": 0.1 * f, "Z_abs_Ns_per_mm2": 0.01,
+                     "Z_phase_deg": -80.0} for f in (10.0, 100.0, 1000.0)], path, title, "N")
+
+
+@pytest.mark.parametrize("draw", [_surface, _population_3d, _impedance])
+def test_a_long_scene_title_stays_inside_the_figure(draw, tmp_path, monkeypatch):
+    """A changed scene's title runs to 60 characters (`Scene.title`); what a figure adds to
+    it (": across the finger", ": driving-point impedance", ": afferents seen from the
+    palm") must not push it off the figure's edges: every title lies within the PNG."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from fingertip_dolfinx.scene import TITLE_LENGTH
+
+    drawn, save = [], Figure.savefig
+    monkeypatch.setattr(Figure, "savefig", lambda fig, *a, **k: (drawn.append(fig),
+                                                                   save(fig, *a, **k)))
+    title = "grating-3d — depth=0.8, mesh min_size=0.5, times=[0.5, 1, 2, 4]"
+    title = title[:TITLE_LENGTH - 1] + "…"  # as Scene.title cuts it
+    draw(title, tmp_path / "figure.png")
+    fig = drawn[-1]
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    fig.draw(renderer)
+    texts = [ax.title for ax in fig.axes] + ([fig._suptitle] if fig._suptitle else [])
+    shown = [t for t in texts if t.get_text()]
+    assert shown
+    for text in shown:
+        box = text.get_window_extent(renderer)
+        assert 0 <= box.x0 and box.x1 <= fig.bbox.width, (text.get_text(), box)

@@ -146,6 +146,17 @@ def plain_log_ticks(ax, which: str = "x") -> None:
     axis.set_minor_formatter(plain if high / low < 30 else FuncFormatter(lambda v, _: ""))
 
 
+def fitted(text: str, fig, fontsize: float = 12.0) -> str:
+    """`text` broken at spaces into lines that fit the figure's width at `fontsize` points:
+    a scene's title (`Scene.title`, up to 60 characters with the overrides) and what a figure
+    adds to it must not run off the figure's edges. A character is taken as 0.6 em, wider
+    than DejaVu Sans's average (about 0.55 em), so a line errs on the short side."""
+    import textwrap
+
+    chars = int(0.95 * fig.get_figwidth() * 72.0 / (0.6 * fontsize))
+    return text if len(text) <= chars else "\n".join(textwrap.wrap(text, chars))
+
+
 def _scaled(values, label: str) -> tuple[np.ndarray, str]:
     """`values` in the unit display_unit chooses for them, and its label."""
     values = np.asarray(values, dtype=float)
@@ -328,7 +339,7 @@ def plot_surface_profiles(profile: dict, path: Path, title: str = "", along: str
     ax.set_xlabel("x (mm), distance from the load axis" if along == "x" else
                   "z (mm), along the finger from the proximal cut")
     ax.set_ylabel("surface deflection (mm)")
-    ax.set_title(title)
+    ax.set_title(fitted(title, fig))
     ax.grid(alpha=0.3)
     ax.legend()
     fig.tight_layout()
@@ -482,5 +493,5 @@ def plot_population_3d(afferents: dict, path: Path, title: str = "") -> None:
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("z (mm), along the finger (tip at the top)")
     fig.colorbar(points, ax=list(axes), label="mean rate over the run (spikes/s)", shrink=0.8)
-    fig.suptitle(f"{title}: afferents seen from the palm", fontsize=10)
+    fig.suptitle(fitted(f"{title}: afferents seen from the palm", fig, 10), fontsize=10)
     fig.savefig(path, dpi=150)
