@@ -373,3 +373,28 @@ def test_a_long_scene_title_stays_inside_the_figure(draw, tmp_path, monkeypatch)
     for text in shown:
         box = text.get_window_extent(renderer)
         assert 0 <= box.x0 and box.x1 <= fig.bbox.width, (text.get_text(), box)
+
+
+@pytest.mark.parametrize("times", [3, 20])
+def test_curves_of_many_output_times_keep_distinct_colours(times, tmp_path, monkeypatch):
+    """One curve per output time: named in a legend while there are few; with many (a scene's
+    `output.times` may list 20) the colour cycle's 10 colours would repeat, so two times would
+    look alike and the legend outgrow the axes: a sequential colour map and a colour bar of
+    the time instead."""
+    from matplotlib.colors import to_rgba
+    from matplotlib.figure import Figure
+
+    from fingertip_dolfinx.plotting.figures import plot_line_force, plot_surface_profiles
+
+    drawn = []
+    monkeypatch.setattr(Figure, "savefig", lambda fig, *a, **k: drawn.append(fig))
+    x, t = np.linspace(-6.0, 6.0, 13), np.linspace(0.1, 2.0, times)
+    columns = {"time_s": np.repeat(t, 13), "x_mm": np.tile(x, times), "z_mm": np.tile(x, times)}
+    bump = np.concatenate([s * np.exp(-x**2) for s in t])
+    plot_surface_profiles({**columns, "deflection_mm": -bump}, tmp_path / "s.png")
+    plot_line_force({**columns, "force_per_length_N_per_mm": bump}, tmp_path / "f.png")
+    for fig in drawn:
+        colours = {to_rgba(line.get_color()) for line in fig.axes[0].get_lines()}
+        assert len(colours) == times
+        assert (fig.axes[0].get_legend() is not None) == (times <= 8)
+        assert len(fig.axes) == (1 if times <= 8 else 2)  # the colour bar of the time

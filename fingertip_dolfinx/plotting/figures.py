@@ -325,23 +325,43 @@ def _coulomb_forces_3d(history: dict) -> tuple[np.ndarray, np.ndarray]:
     return (np.abs(np.concatenate([[0.0], normal])), np.concatenate([[0.0], tangential]))
 
 
+#: Up to this many output times, one curve each in the colour cycle, named in a legend.
+LEGEND_TIMES = 8
+
+
+def _time_colours(fig, ax, times) -> list:
+    """The colour of each output time's curve: the colour cycle's (and a legend, drawn by the
+    caller) up to LEGEND_TIMES; beyond, where the cycle's 10 colours would repeat and the
+    legend outgrow the axes, a sequential colour map and a colour bar of the time."""
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+
+    if len(times) <= LEGEND_TIMES:
+        return [f"C{i}" for i in range(len(times))]
+    norm, cmap = Normalize(float(times[0]), float(times[-1])), matplotlib.colormaps["viridis"]
+    fig.colorbar(ScalarMappable(norm, cmap), ax=ax, label="output time (s)")
+    return [cmap(norm(t)) for t in times]
+
+
 def plot_surface_profiles(profile: dict, path: Path, title: str = "", along: str = "x") -> None:
     """Deflection of the pulp surface along x (or z: `along`) at each output time (cf. the
     paper's Fig. 2)."""
     fig = Figure(figsize=(6.4, 4.0))
     ax = fig.subplots()
     key = f"{along}_mm"
-    for t in np.unique(profile["time_s"]):
+    times = np.unique(profile["time_s"])
+    for t, colour in zip(times, _time_colours(fig, ax, times)):
         rows = profile["time_s"] == t
         order = np.argsort(profile[key][rows])
         ax.plot(profile[key][rows][order], profile["deflection_mm"][rows][order],
-                label=f"t = {t:g} s")
+                color=colour, label=f"t = {t:g} s")
     ax.set_xlabel("x (mm), distance from the load axis" if along == "x" else
                   "z (mm), along the finger from the proximal cut")
     ax.set_ylabel("surface deflection (mm)")
     ax.set_title(fitted(title, fig))
     ax.grid(alpha=0.3)
-    ax.legend()
+    if len(times) <= LEGEND_TIMES:
+        ax.legend()
     fig.tight_layout()
     fig.savefig(path, dpi=150)
 
@@ -353,15 +373,17 @@ def plot_line_force(line: dict, path: Path, title: str = "") -> None:
     ax = fig.subplots()
     factor, label = display_unit("force per unit length (N/mm)", float(
         np.nanmax(np.abs(line["force_per_length_N_per_mm"]), initial=0.0)))
-    for t in np.unique(line["time_s"]):
+    times = np.unique(line["time_s"])
+    for t, colour in zip(times, _time_colours(fig, ax, times)):
         rows = line["time_s"] == t
         ax.step(line["z_mm"][rows], factor * line["force_per_length_N_per_mm"][rows],
-                where="mid", label=f"t = {t:g} s")
+                where="mid", color=colour, label=f"t = {t:g} s")
     ax.set_xlabel("z (mm), along the finger from the proximal cut")
     ax.set_ylabel(label)
     ax.set_title(title)
     ax.grid(alpha=0.3)
-    ax.legend()
+    if len(times) <= LEGEND_TIMES:
+        ax.legend()
     fig.tight_layout()
     fig.savefig(path, dpi=150)
 
