@@ -70,7 +70,7 @@ from .harmonic_options import HarmonicOptions, parse_frequencies
 from .loading import RampHold, Vibration
 from .outputs import CsvLog, prepare_directory, write_json
 from .physics.kinematics import principal_log_strains
-from .plotting.figures import plain_log_ticks
+from .plotting.figures import fitted, plain_log_ticks
 from .post import DerivedFields, PointSampler, QuadratureProjection, accepted_stress
 from .problem import FingertipProblem
 from .scene import Scene, scene_record
@@ -329,7 +329,7 @@ def _sweep(solver, transfer, sites, freqs, out: Path, comm, show) -> tuple[list,
 def _figures(rows, site_rows, curves, population, scene, options, pressing, summary,
              out: Path) -> None:
     """impedance.png, receptor_transfer_<class>.png and thresholds.png (rank 0)."""
-    plot_impedance(rows, out / "impedance.png", scene.name)
+    plot_impedance(rows, out / "impedance.png", scene.name, summary["force_unit"])
     if not isinstance(scene.section, Fingertip3D):  # 3D sites are not a row along x
         plot_receptor_transfer(site_rows, out, population, scene.name)
     plot_threshold_curves(curves, out / "thresholds.png", title=(
@@ -554,18 +554,21 @@ def _printer(progress: bool, comm):
 # --- figures ----------------------------------------------------------------------------------
 
 
-def plot_impedance(rows: list[dict], path: Path, title: str = "") -> Path:
+def plot_impedance(rows: list[dict], path: Path, title: str = "",
+                   force: str = "N/mm") -> Path:
     """Bode plot of the driving-point impedance Z(ω): |Z| and its phase at the computed
     frequencies (markers only: a line between two samples would claim a curve that was not
     computed, across resonances), log axes; the resolved resonances as vertical lines, and the
-    bands where the grid does not resolve a peak shaded, with the warning below the axes."""
+    bands where the grid does not resolve a peak shaded, with the warning below the axes.
+    `force`: the force's unit (`force_unit`), which gives |Z|'s: force per mm/s."""
     f = np.array([r["frequency_Hz"] for r in rows])
     found = resonances(rows)
     fig = Figure(figsize=(6.4, 6.4))
     top, bottom = fig.subplots(2, 1, sharex=True)
     top.loglog(f, [r["Z_abs_Ns_per_mm2"] for r in rows], "o", ms=4, label="computed")
-    top.set_ylabel("|Z| (N·s/mm per mm)")
-    top.set_title(f"{title}: driving-point impedance" if title else "driving-point impedance")
+    top.set_ylabel(impedance_label(force))
+    top.set_title(fitted(f"{title}: driving-point impedance" if title else
+                         "driving-point impedance", fig))
     bottom.semilogx(f, [r["Z_phase_deg"] for r in rows], "o", ms=4)
     bottom.set_ylabel("phase of Z (°)")
     bottom.set_yticks([-90, -45, 0, 45, 90])
@@ -594,6 +597,14 @@ def plot_impedance(rows: list[dict], path: Path, title: str = "") -> Path:
     return path
 
 
+def impedance_label(force: str) -> str:
+    """|Z|'s axis label for the force unit `force_unit` gives: Z = δf/(iω δd) is a force per
+    mm/s, so N·s/mm per mm of thickness in plane strain and N·s/mm in 3D, a half model's named."""
+    if force == "N/mm":
+        return "|Z| (N·s/mm per mm)"
+    return "|Z| of the half model (N·s/mm)" if "half" in force else "|Z| (N·s/mm)"
+
+
 def plot_receptor_transfer(rows: list[dict], out: Path, population,
                            title: str = "") -> list[Path]:
     """Per receptor class: the amplitude of the stimulus quantity its model reads, per µm of
@@ -617,18 +628,24 @@ def plot_receptor_transfer(rows: list[dict], out: Path, population,
         z[np.searchsorted(f, data["frequency_Hz"][mine]),
           np.searchsorted(x, data["x_mm"][mine])] = data[f"{quantity}_abs_per_um"][mine]
         z = np.ma.masked_where(~(z > 0), z)  # a zero amplitude has no colour on a log scale
-        mesh = ax.pcolormesh(_edges(x, log=False), _edges(f, log=True), z,
-                             norm=LogNorm(vmin=z.min(), vmax=z.max()), shading="flat")
+        name = quantity.replace("_", " ")
+        if z.count():
+            mesh = ax.pcolormesh(_edges(x, log=False), _edges(f, log=True), z,
+                                 norm=LogNorm(vmin=z.min(), vmax=z.max()), shading="flat")
+            fig.colorbar(mesh, ax=ax,
+                         label=f"{name} amplitude ({QUANTITIES[quantity][2]} per µm)")
+        else:  # none above zero (no first-order change, e.g. SED about rest): no log scale
+            ax.set(xlim=_edges(x, log=False)[[0, -1]], ylim=_edges(f, log=True)[[0, -1]])
+            ax.text(0.5, 0.5, f"{name}: zero (or not computed)\nat every site and frequency",
+                    transform=ax.transAxes, ha="center", va="center")
         ax.set_yscale("log")
         plain_log_ticks(ax, "y")
         ax.set_xlabel("x of the site (mm)")
         ax.set_ylabel("vibration frequency (Hz)")
         depths = ", ".join(f"{d:g}" for d in np.unique(data["depth_mm"][mine]))
-        name = quantity.replace("_", " ")
-        ax.set_title(f"{title}: {cls} sites ({depths} mm deep), {name} per µm of drive"
-                     if title else f"{cls} sites ({depths} mm deep), {name} per µm of drive",
-                     fontsize=9)
-        fig.colorbar(mesh, ax=ax, label=f"{name} amplitude ({QUANTITIES[quantity][2]} per µm)")
+        ax.set_title(fitted(f"{title}: {cls} sites ({depths} mm deep), {name} per µm of drive"
+                            if title else f"{cls} sites ({depths} mm deep), {name} per µm of "
+                            "drive", fig, 9), fontsize=9)
         fig.tight_layout()
         paths.append(out / f"receptor_transfer_{cls}.png")
         fig.savefig(paths[-1], dpi=120)

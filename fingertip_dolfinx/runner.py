@@ -520,7 +520,8 @@ class Run:
                         s = read_csv(self.out / "stick_slip.csv")
                         plot_friction_3d(h, folder / "friction.png",
                                          max(self.problem.friction_coefficients),
-                                         title=self.scene.title, stick_slip=s or None)
+                                         title=self.scene.title, stick_slip=s or None,
+                                         half=self.problem.mirror_factor == 2)
         return summary
 
 

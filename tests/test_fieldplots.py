@@ -273,3 +273,128 @@ def test_the_force_history_names_a_half_models_force_and_draws_the_force_target(
                        tmp_path / "g.png")
     assert drawn[-1].axes[1].get_ylabel() == "force (mN)"
     assert len(drawn[-1].axes[1].get_lines()) == 1
+
+
+def test_the_3d_friction_figure_names_a_half_models_areas_and_forces(tmp_path, monkeypatch):
+    """shear-3d and slide-3d are half models: history.csv's areas and forces are the half's
+    own (the mirror image carries as much again), so the friction figure's axes say so, as
+    the force history's do; a whole model's axes name the plain quantities."""
+    from matplotlib.figure import Figure
+
+    from fingertip_dolfinx.plotting.figures import plot_friction_3d
+
+    drawn = []
+    monkeypatch.setattr(Figure, "savefig", lambda fig, *a, **k: drawn.append(fig))
+    t = np.array([0.5, 1.0])
+    history = {"time_s": t, "force_N": 0.4 * t, "tangential_x_force_N": 0.0 * t,
+               "tangential_z_force_N": 0.1 * t, "contact_area_mm2": 2.0 * t,
+               "stick_area_mm2": t}
+    for half in (True, False):
+        plot_friction_3d(history, tmp_path / "friction.png", 0.5, half=half)
+        area, force = (" ".join(ax.get_ylabel().split()) for ax in drawn[-1].axes)
+        assert area == ("area on the half model (mm², reference)" if half else
+                        "area (mm², reference)")
+        assert force == "force on the half model (N)" if half else "force (N)"
+
+
+def test_the_spacing_figure_keeps_every_bar_and_its_peak_in_view(tmp_path, monkeypatch):
+    """The profiles by spacing are shown over ±4 mm, enough for the spacings of the paper
+    (up to 4 mm: bar centres at ±2 mm); a wider spacing (10 mm: bars at ±5 mm, within the
+    profile's ±6 mm) widens the view, so its peaks under the bars are not cut off."""
+    from matplotlib.figure import Figure
+
+    from fingertip_dolfinx.plotting.figures import plot_spacing_profiles
+
+    drawn = []
+    monkeypatch.setattr(Figure, "savefig", lambda fig, *a, **k: drawn.append(fig))
+    x = np.linspace(-6.0, 6.0, 121)
+
+    def run(d):  # a strain bump of 0.5 mm under each bar centre
+        bump = np.exp(-((x - d / 2) / 0.5) ** 2) + np.exp(-((x + d / 2) / 0.5) ** 2)
+        return {"x_mm": x, "depth_mm": np.ones_like(x), "time_s": np.ones_like(x),
+                "e11": 1e-2 * bump, "e22": -1e-2 * bump, "e12": 5e-3 * bump,
+                "sed_MPa": 1e-4 * bump}
+
+    for spacings, edge in (((2.0, 4.0), 4.0), ((2.0, 10.0), 7.0)):
+        plot_spacing_profiles({d: run(d) for d in spacings}, tmp_path / "p.png", 1.0, 1.0)
+        for ax in drawn[-1].axes:
+            assert ax.get_xlim() == pytest.approx((-edge, edge))
+            for line in ax.get_lines()[::2]:  # the profiles (each followed by its bar ticks)
+                peak = line.get_xdata()[np.argmax(np.abs(line.get_ydata()))]
+                assert -edge < peak < edge
+
+
+def _surface(title, path):
+    from fingertip_dolfinx.plotting.figures import plot_surface_profiles
+
+    x = np.linspace(-5.0, 5.0, 11)
+    plot_surface_profiles({"x_mm": x, "time_s": np.ones(11), "deflection_mm": -np.exp(-x**2)},
+                          path, title=f"{title}: across the finger")
+
+
+def _population_3d(title, path):  # one class (an SA1-only population): the narrowest figure
+    from fingertip_dolfinx.plotting.figures import plot_population_3d
+
+    x = np.linspace(-6.0, 6.0, 9)
+    plot_population_3d({"x_mm": x, "y_mm": -4.0 + 0 * x, "z_mm": 10.0 + x,
+                        "mean_rate_per_s": 10.0 + x, "class": np.array(["SA1"] * 9)},
+                       path, title)
+
+
+def _impedance(title, path):
+    from fingertip_dolfinx.frequency_response import plot_impedance
+
+    plot_impedance([{"frequency_Hz": f, "K_abs_N_per_mm2": 0.1 * f, "Z_abs_Ns_per_mm2": 0.01,
+                     "Z_phase_deg": -80.0} for f in (10.0, 100.0, 1000.0)], path, title, "N")
+
+
+@pytest.mark.parametrize("draw", [_surface, _population_3d, _impedance])
+def test_a_long_scene_title_stays_inside_the_figure(draw, tmp_path, monkeypatch):
+    """A changed scene's title runs to 60 characters (`Scene.title`); what a figure adds to
+    it (": across the finger", ": driving-point impedance", ": afferents seen from the
+    palm") must not push it off the figure's edges: every title lies within the PNG."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from fingertip_dolfinx.scene import TITLE_LENGTH
+
+    drawn, save = [], Figure.savefig
+    monkeypatch.setattr(Figure, "savefig", lambda fig, *a, **k: (drawn.append(fig),
+                                                                   save(fig, *a, **k)))
+    title = "grating-3d — depth=0.8, mesh min_size=0.5, times=[0.5, 1, 2, 4]"
+    title = title[:TITLE_LENGTH - 1] + "…"  # as Scene.title cuts it
+    draw(title, tmp_path / "figure.png")
+    fig = drawn[-1]
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    fig.draw(renderer)
+    texts = [ax.title for ax in fig.axes] + ([fig._suptitle] if fig._suptitle else [])
+    shown = [t for t in texts if t.get_text()]
+    assert shown
+    for text in shown:
+        box = text.get_window_extent(renderer)
+        assert 0 <= box.x0 and box.x1 <= fig.bbox.width, (text.get_text(), box)
+
+
+@pytest.mark.parametrize("times", [3, 20])
+def test_curves_of_many_output_times_keep_distinct_colours(times, tmp_path, monkeypatch):
+    """One curve per output time: named in a legend while there are few; with many (a scene's
+    `output.times` may list 20) the colour cycle's 10 colours would repeat, so two times would
+    look alike and the legend outgrow the axes: a sequential colour map and a colour bar of
+    the time instead."""
+    from matplotlib.colors import to_rgba
+    from matplotlib.figure import Figure
+
+    from fingertip_dolfinx.plotting.figures import plot_line_force, plot_surface_profiles
+
+    drawn = []
+    monkeypatch.setattr(Figure, "savefig", lambda fig, *a, **k: drawn.append(fig))
+    x, t = np.linspace(-6.0, 6.0, 13), np.linspace(0.1, 2.0, times)
+    columns = {"time_s": np.repeat(t, 13), "x_mm": np.tile(x, times), "z_mm": np.tile(x, times)}
+    bump = np.concatenate([s * np.exp(-x**2) for s in t])
+    plot_surface_profiles({**columns, "deflection_mm": -bump}, tmp_path / "s.png")
+    plot_line_force({**columns, "force_per_length_N_per_mm": bump}, tmp_path / "f.png")
+    for fig in drawn:
+        colours = {to_rgba(line.get_color()) for line in fig.axes[0].get_lines()}
+        assert len(colours) == times
+        assert (fig.axes[0].get_legend() is not None) == (times <= 8)
+        assert len(fig.axes) == (1 if times <= 8 else 2)  # the colour bar of the time

@@ -338,6 +338,46 @@ def test_a_peak_sharper_than_the_grid_is_reported_when_bracketed_closely():
     assert found == pytest.approx(47.0, abs=f[1] - f[0])
 
 
+def test_the_impedance_axis_has_the_unit_of_the_runs_force(tmp_path, monkeypatch):
+    """Z = δf/(iω δd) is a force per mm/s: N·s/mm per mm of thickness in plane strain, N·s/mm
+    in 3D, where vibrotactile-3d's half model carries half the finger's force: its axis says
+    so (`force_unit`'s names of the force)."""
+    from matplotlib.figure import Figure
+
+    from fingertip_dolfinx.frequency_response import plot_impedance
+
+    drawn = []
+    monkeypatch.setattr(Figure, "savefig", lambda fig, *a, **k: drawn.append(fig))
+    rows = [{**r, "Z_abs_Ns_per_mm2": r["K_abs_N_per_mm2"] / (2 * math.pi * r["frequency_Hz"]),
+             "Z_phase_deg": -90.0} for r in _oscillator_rows(np.geomspace(10, 100, 5), 0.1, False)]
+    for force, label in (("N/mm", "|Z| (N·s/mm per mm)"), ("N", "|Z| (N·s/mm)"),
+                         ("N (half model)", "|Z| of the half model (N·s/mm)")):
+        plot_impedance(rows, tmp_path / "impedance.png", force=force)
+        assert drawn[-1].axes[0].get_ylabel() == label
+
+
+def test_a_class_with_no_transfer_is_drawn_blank_not_a_failure(tmp_path, monkeypatch):
+    """A class whose quantity has no first-order change anywhere (amplitude 0 at every site
+    and frequency) has nothing to colour on a log scale: its figure says so, without a colour
+    bar, and the others (and the route's remaining figures) are still drawn."""
+    from types import SimpleNamespace
+
+    from matplotlib.figure import Figure
+
+    from fingertip_dolfinx.frequency_response import TRANSFER_COLUMNS, plot_receptor_transfer
+
+    drawn = []
+    monkeypatch.setattr(Figure, "savefig", lambda fig, *a, **k: drawn.append(fig))
+    rows = [{**dict.fromkeys(TRANSFER_COLUMNS, 0.0), "frequency_Hz": f, "class": cls,
+             "x_mm": x, "depth_mm": 1.0, "sed_abs_per_um": (cls == "SA1") * f * (1 + x**2)}
+            for f in (10.0, 100.0) for cls in ("SA1", "RA") for x in (-1.0, 0.0, 1.0)]
+    population = {cls: SimpleNamespace(quantity="sed") for cls in ("SA1", "RA")}
+    paths = plot_receptor_transfer(rows, tmp_path, population)
+    assert [p.name for p in paths] == ["receptor_transfer_SA1.png", "receptor_transfer_RA.png"]
+    assert [len(fig.axes) for fig in drawn] == [2, 1]  # the colour bar: SA1's only
+    assert "zero" in drawn[1].axes[0].texts[0].get_text()
+
+
 def test_a_3d_population_keeps_the_sites_of_largest_peak_response():
     """The 3D thresholds are searched on the `most` sites whose |H| peaks highest over the
     sweep (the most sensitive afferent among them); all sites when `most` is None or more."""

@@ -202,6 +202,18 @@ def test_the_threshold_figure_is_drawn(tmp_path):
     assert {"RA I0 absolute", "PC I1 1:1"} <= set(legend)
 
 
+def test_a_threshold_found_at_no_frequency_is_named_so_in_the_legend(tmp_path):
+    """A class and criterion without a threshold at any computed frequency draws no marker;
+    its legend entry says so, rather than naming markers the axes do not show."""
+    from types import SimpleNamespace
+
+    f = np.array([10.0, 100.0])
+    th = SimpleNamespace(name="RA", frequency=f, best=lambda criterion: (
+        np.array([2e-3, np.nan]) if criterion == "absolute" else np.full(2, np.nan)))
+    legend = vt.plot_threshold_curves([th], tmp_path / "thresholds.png", touchsim=False)
+    assert legend[:2] == ["RA I0 absolute", "RA I1 1:1: none"]
+
+
 def test_a_site_already_firing_has_no_threshold():
     """SA1 reads [s]+ of SED (p1 = 1e6 /MPa, p7 = 10: the rheobase lies at SED = 10/9 × 1e-6
     MPa): a pressed site above it fires without vibration, so neither threshold applies (NaN);

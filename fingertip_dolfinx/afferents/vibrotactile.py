@@ -753,7 +753,8 @@ def plot_threshold_curves(curves, path, *, published=PUBLISHED, title: str = "",
             y = th.best(criterion) * 1e3
             keep = np.isfinite(y) & (y > 0)
             handles += ax.loglog(th.frequency[keep], y[keep], marker, color=c, mfc=fill, ms=5,
-                                 ls="none", label=f"{th.name} {name}")
+                                 ls="none", label=f"{th.name} {name}" + (
+                                     "" if keep.any() else ": none"))
     if touchsim:
         handles += _touchsim_lines(ax, curves, colours)
     for p in published:

@@ -146,6 +146,17 @@ def plain_log_ticks(ax, which: str = "x") -> None:
     axis.set_minor_formatter(plain if high / low < 30 else FuncFormatter(lambda v, _: ""))
 
 
+def fitted(text: str, fig, fontsize: float = 12.0) -> str:
+    """`text` broken at spaces into lines that fit the figure's width at `fontsize` points:
+    a scene's title (`Scene.title`, up to 60 characters with the overrides) and what a figure
+    adds to it must not run off the figure's edges. A character is taken as 0.6 em, wider
+    than DejaVu Sans's average (about 0.55 em), so a line errs on the short side."""
+    import textwrap
+
+    chars = int(0.95 * fig.get_figwidth() * 72.0 / (0.6 * fontsize))
+    return text if len(text) <= chars else "\n".join(textwrap.wrap(text, chars))
+
+
 def _scaled(values, label: str) -> tuple[np.ndarray, str]:
     """`values` in the unit display_unit chooses for them, and its label."""
     values = np.asarray(values, dtype=float)
@@ -256,12 +267,13 @@ def _coulomb_panel(ax, t, normal, tangential, mu: float, quantity: str, name: st
 
 
 def plot_friction_3d(history: dict, path: Path, mu: float, title: str = "",
-                     stick_slip: dict | None = None) -> None:
+                     stick_slip: dict | None = None, half: bool = False) -> None:
     """A 3D run with friction, from history.csv (and stick_slip.csv). At the top, given
     `stick_slip`: the stick/slip map along the finger (z against time, on the line of
     surface_along.csv). Then the contact area and its sticking part against time; below, the
     pressure's normal force, the friction's tangential share and Coulomb's bound μ times the
-    former (`_coulomb_forces_3d`)."""
+    former (`_coulomb_forces_3d`). `half`: the areas and forces are a half model's (history.csv
+    holds the half's own; its mirror image carries as much again), and the labels say so."""
     if stick_slip is None:
         fig = Figure(figsize=(6.4, 6.4))
         ax_a, ax_f = fig.subplots(2, 1, sharex=True, height_ratios=(1, 1))
@@ -281,11 +293,14 @@ def plot_friction_3d(history: dict, path: Path, mu: float, title: str = "",
                                ("stick_area_mm2", STATE_COLOURS[2], "sticking")):
         ax_a.plot(t, np.concatenate([[0.0], history[key]]), "o-", ms=3, color=colour,
                   label=label)
-    ax_a.set_ylabel("area (mm², reference)")
+    # a half model's labels on two lines: the panels are too short for one
+    ax_a.set_ylabel("area on the half model\n(mm², reference)" if half
+                    else "area (mm², reference)")
     ax_a.legend(fontsize=8)
     ax_a.grid(alpha=0.3)
     ax_a.set_title(title)
-    _coulomb_panel(ax_f, t, *_coulomb_forces_3d(history), mu, "force (N)",
+    _coulomb_panel(ax_f, t, *_coulomb_forces_3d(history), mu,
+                   "force on the\nhalf model (N)" if half else "force (N)",
                    "friction's tangential share |(F_x − F_p,x, F_z − F_p,z)|"
                    if "pressure_normal_force_N" in history else "tangential force |(F_x, F_z)|",
                    "pressure's normal force F_p,y" if "pressure_normal_force_N" in history
@@ -310,23 +325,43 @@ def _coulomb_forces_3d(history: dict) -> tuple[np.ndarray, np.ndarray]:
     return (np.abs(np.concatenate([[0.0], normal])), np.concatenate([[0.0], tangential]))
 
 
+#: Up to this many output times, one curve each in the colour cycle, named in a legend.
+LEGEND_TIMES = 8
+
+
+def _time_colours(fig, ax, times) -> list:
+    """The colour of each output time's curve: the colour cycle's (and a legend, drawn by the
+    caller) up to LEGEND_TIMES; beyond, where the cycle's 10 colours would repeat and the
+    legend outgrow the axes, a sequential colour map and a colour bar of the time."""
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+
+    if len(times) <= LEGEND_TIMES:
+        return [f"C{i}" for i in range(len(times))]
+    norm, cmap = Normalize(float(times[0]), float(times[-1])), matplotlib.colormaps["viridis"]
+    fig.colorbar(ScalarMappable(norm, cmap), ax=ax, label="output time (s)")
+    return [cmap(norm(t)) for t in times]
+
+
 def plot_surface_profiles(profile: dict, path: Path, title: str = "", along: str = "x") -> None:
     """Deflection of the pulp surface along x (or z: `along`) at each output time (cf. the
     paper's Fig. 2)."""
     fig = Figure(figsize=(6.4, 4.0))
     ax = fig.subplots()
     key = f"{along}_mm"
-    for t in np.unique(profile["time_s"]):
+    times = np.unique(profile["time_s"])
+    for t, colour in zip(times, _time_colours(fig, ax, times)):
         rows = profile["time_s"] == t
         order = np.argsort(profile[key][rows])
         ax.plot(profile[key][rows][order], profile["deflection_mm"][rows][order],
-                label=f"t = {t:g} s")
+                color=colour, label=f"t = {t:g} s")
     ax.set_xlabel("x (mm), distance from the load axis" if along == "x" else
                   "z (mm), along the finger from the proximal cut")
     ax.set_ylabel("surface deflection (mm)")
-    ax.set_title(title)
+    ax.set_title(fitted(title, fig))
     ax.grid(alpha=0.3)
-    ax.legend()
+    if len(times) <= LEGEND_TIMES:
+        ax.legend()
     fig.tight_layout()
     fig.savefig(path, dpi=150)
 
@@ -338,15 +373,17 @@ def plot_line_force(line: dict, path: Path, title: str = "") -> None:
     ax = fig.subplots()
     factor, label = display_unit("force per unit length (N/mm)", float(
         np.nanmax(np.abs(line["force_per_length_N_per_mm"]), initial=0.0)))
-    for t in np.unique(line["time_s"]):
+    times = np.unique(line["time_s"])
+    for t, colour in zip(times, _time_colours(fig, ax, times)):
         rows = line["time_s"] == t
         ax.step(line["z_mm"][rows], factor * line["force_per_length_N_per_mm"][rows],
-                where="mid", label=f"t = {t:g} s")
+                where="mid", color=colour, label=f"t = {t:g} s")
     ax.set_xlabel("z (mm), along the finger from the proximal cut")
     ax.set_ylabel(label)
     ax.set_title(title)
     ax.grid(alpha=0.3)
-    ax.legend()
+    if len(times) <= LEGEND_TIMES:
+        ax.legend()
     fig.tight_layout()
     fig.savefig(path, dpi=150)
 
@@ -402,9 +439,12 @@ def plot_spacing_profiles(runs: dict[float, dict], path: Path, time_s: float, de
             ax.plot([-d / 2, d / 2], [0.0, 0.0], "|", color=colour, ms=8)
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
+    # ±4 mm around the load axis, wider for a spacing that puts a bar centre within 2 mm of
+    # that edge: each bar and its flank stay in view (no peak cut off by the axis)
+    edge = max(4.0, max(runs) / 2 + 2.0)
     for ax in axes[1]:
         ax.set_xlabel("x (mm); ticks on the axis: bar centres")
-        ax.set_xlim(-4.0, 4.0)
+        ax.set_xlim(-edge, edge)
     handles, labels = axes[0, 0].get_legend_handles_labels()  # beside the panels: off the data
     fig.legend(handles, labels, loc="center right", fontsize=8)
     fig.suptitle(f"{title} at depth {depth_mm:g} mm, t = {time_s:g} s")
@@ -475,5 +515,5 @@ def plot_population_3d(afferents: dict, path: Path, title: str = "") -> None:
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("z (mm), along the finger (tip at the top)")
     fig.colorbar(points, ax=list(axes), label="mean rate over the run (spikes/s)", shrink=0.8)
-    fig.suptitle(f"{title}: afferents seen from the palm", fontsize=10)
+    fig.suptitle(fitted(f"{title}: afferents seen from the palm", fig, 10), fontsize=10)
     fig.savefig(path, dpi=150)
