@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from fingertip_dolfinx.frequency_response import resonances
+from fingertip_dolfinx.frequency_response import magnitude_key, resonances
 from fingertip_dolfinx.outputs import read_csv
 
 
@@ -45,7 +45,7 @@ def table_lines(label: str, run: dict, at) -> list[str]:
             cells.append("-")
             continue
         r = run["rows"][i]
-        cells.append(f"{r['K_real']:.3e} {r['K_imag']:+.1e} i; {r['Z_abs_Ns_per_mm2']:.3e}, "
+        cells.append(f"{r['K_real']:.3e} {r['K_imag']:+.1e} i; {r[magnitude_key(r, 'Z')]:.3e}, "
                      f"{r['Z_phase_deg']:+.1f}°")
     return [head + " " + " | ".join(cells) + " |"]
 
@@ -55,7 +55,7 @@ def plot(runs: dict, path: Path) -> None:
     top, bottom = fig.subplots(2, 1, sharex=True)
     for label, run in runs.items():
         f = [r["frequency_Hz"] for r in run["rows"]]
-        top.loglog(f, [r["Z_abs_Ns_per_mm2"] for r in run["rows"]], "-", lw=1, label=label)
+        top.loglog(f, [r[magnitude_key(r, "Z")] for r in run["rows"]], "-", lw=1, label=label)
         bottom.semilogx(f, [r["Z_phase_deg"] for r in run["rows"]], "-", lw=1)
     top.set_ylabel("|Z| (N·s/mm per mm)")
     top.set_title("driving-point impedance of the 1 mm bar (held state)", fontsize=9)

@@ -6,9 +6,10 @@ r"""The frequency route of a scene: pressed state, then the small-signal respons
 1. the pressed state: the protocol's pre-indentation (`loading.Vibration.pressing`, or a
    `RampHold` protocol itself), "held" at its end or "relaxed" (harmonic.press);
 2. the linearisation and one LU per frequency (harmonic.HarmonicSolver);
-3. per frequency a row of frequency_response.csv: the dynamic stiffness K(ω) = δf/δd (N/mm per
-   mm) and the driving-point impedance Z(ω) = δf/(iω δd) (N·s/mm per mm), magnitude and phase
-   (degrees; a phase > 0: the force leads the drive);
+3. per frequency a row of frequency_response.csv: the dynamic stiffness K(ω) = δf/δd and the
+   driving-point impedance Z(ω) = δf/(iω δd), magnitude and phase (degrees; a phase > 0: the
+   force leads the drive); N/mm per mm and N·s/mm per mm in plane strain, N/mm and N·s/mm in
+   3D (a half model's own), the columns named by their units (`response_columns`);
 4. per frequency and receptor site a row of receptor_transfer.csv: the transfer functions from
    the drive to the stimulus quantities of `receptors.QUANTITIES` (sed, compressive_strain =
    −e_min, compressive_stress = −σ22 total), amplitude per µm of drive and phase (degrees), at
@@ -75,6 +76,8 @@ from .post import DerivedFields, PointSampler, QuadratureProjection, accepted_st
 from .problem import FingertipProblem
 from .scene import Scene, scene_record
 
+#: frequency_response.csv's columns in plane strain, where K is a force per unit thickness
+#: per mm of drive (N/mm per mm) and Z one per mm/s (N·s/mm per mm); `response_columns`.
 RESPONSE_COLUMNS = ("frequency_Hz", "K_abs_N_per_mm2", "K_phase_deg", "Z_abs_Ns_per_mm2",
                     "Z_phase_deg", "K_real", "K_imag", "solve_s")
 TRANSFER_COLUMNS = ("frequency_Hz", "class", "index", "x_mm", "depth_mm", *(
@@ -265,7 +268,7 @@ def run_frequency_response(scene: Scene, out: str | Path, *, frequencies=None,
     at = sites.points if sites.sample_points is None else sites.sample_points
     try:
         rows, site_rows, transfers = _sweep(solver, SiteTransfer(problem, at), sites,
-                                            freqs, out, comm, show)
+                                            freqs, out, comm, show, force_unit(problem))
     finally:
         solver.close()
     most = None if sites.sample_points is None else THRESHOLD_SITES_3D
@@ -302,23 +305,41 @@ def force_unit(problem) -> str:
     return "N (half model)" if problem.mirror_factor == 2 else "N"
 
 
-def _sweep(solver, transfer, sites, freqs, out: Path, comm, show) -> tuple[list, list, list]:
-    """One solve per frequency, each written as it comes: a row of frequency_response.csv and
-    the sites' rows of receptor_transfer.csv. Returns (response rows, site rows, the transfer
-    functions per frequency)."""
-    response_log = CsvLog(out / "frequency_response.csv", RESPONSE_COLUMNS, comm)
+def response_columns(unit: str) -> tuple[str, ...]:
+    """frequency_response.csv's columns for the force unit `unit` (`force_unit`): |K| and |Z|
+    named by their units, N/mm per mm and N·s/mm per mm in plane strain (RESPONSE_COLUMNS),
+    N/mm and N·s/mm in 3D (a half model's own: summary.json's `mirror_factor`)."""
+    if unit == "N/mm":
+        return RESPONSE_COLUMNS
+    return tuple(c.replace("_per_mm2", "_per_mm") for c in RESPONSE_COLUMNS)
+
+
+def magnitude_key(row: dict, quantity: str) -> str:
+    """The column of |K| or |Z| (`quantity`: "K" or "Z") in a row of frequency_response.csv,
+    whichever unit names it (`response_columns`)."""
+    return next(k for k in row if k.startswith(f"{quantity}_abs_"))
+
+
+def _sweep(solver, transfer, sites, freqs, out: Path, comm, show, unit: str
+           ) -> tuple[list, list, list]:
+    """One solve per frequency, each written as it comes: a row of frequency_response.csv (its
+    columns named for the force unit `unit`) and the sites' rows of receptor_transfer.csv.
+    Returns (response rows, site rows, the transfer functions per frequency)."""
+    columns = response_columns(unit)
+    response_log = CsvLog(out / "frequency_response.csv", columns, comm)
     transfer_log = CsvLog(out / "receptor_transfer.csv", site_columns(TRANSFER_COLUMNS, sites),
                           comm)
     rows, site_rows, transfers = [], [], []
     try:
         for k, f in enumerate(freqs):
             r = solver.solve(f)
-            rows.append(response_row(r))
+            rows.append(response_row(r, columns))
             response_log.write([rows[-1]])
             transfers.append(transfer(r))
             site_rows += transfer_rows(f, transfers[-1], sites)
             transfer_log.write(site_rows[len(site_rows) - len(sites):] if comm.rank == 0 else [])
-            show(f"[{k + 1}/{len(freqs)}] {f:.4g} Hz: |Z| = {abs(r.impedance):.4g} N·s/mm², "
+            show(f"[{k + 1}/{len(freqs)}] {f:.4g} Hz: |Z| = {abs(r.impedance):.4g} "
+                 f"{impedance_unit(unit)}, "
                  f"phase {math.degrees(np.angle(r.impedance)):.1f}° ({r.wall_time_s:.2f} s)")
     finally:
         response_log.close()
@@ -432,12 +453,12 @@ def site_position(sites, i: int) -> dict:
     return {"x_mm": x, "y_mm": y, "z_mm": z}
 
 
-def response_row(r) -> dict:
+def response_row(r, columns: tuple[str, ...] = RESPONSE_COLUMNS) -> dict:
+    """One frequency's row of frequency_response.csv (`columns`: `response_columns`)."""
     K, Z = r.stiffness, r.impedance
-    return {"frequency_Hz": r.frequency, "K_abs_N_per_mm2": abs(K),
-            "K_phase_deg": math.degrees(np.angle(K)), "Z_abs_Ns_per_mm2": abs(Z),
-            "Z_phase_deg": math.degrees(np.angle(Z)), "K_real": K.real, "K_imag": K.imag,
-            "solve_s": r.wall_time_s}
+    values = (r.frequency, abs(K), math.degrees(np.angle(K)), abs(Z),
+              math.degrees(np.angle(Z)), K.real, K.imag, r.wall_time_s)
+    return dict(zip(columns, values, strict=True))
 
 
 def transfer_rows(frequency: float, values: dict | None, sites) -> list[dict]:
@@ -472,7 +493,7 @@ def resonances(rows: list[dict]) -> dict[str, list]:
     "unresolved": {"kind", "sampled_Hz", "refine_Hz": [its neighbours]}. A sweep can still
     step over a peak without seeing it: no sampled maximum, nothing said."""
     f = np.array([r["frequency_Hz"] for r in rows])
-    k = np.array([r["K_abs_N_per_mm2"] for r in rows])
+    k = np.array([r[magnitude_key(r, "K")] for r in rows])
     found = {"probe_held": [], "force_driven": [], "unresolved": []}
     for kind, level in (("probe_held", k), ("force_driven", 1 / k)):
         for i in range(1, len(f) - 1):
@@ -565,7 +586,7 @@ def plot_impedance(rows: list[dict], path: Path, title: str = "",
     found = resonances(rows)
     fig = Figure(figsize=(6.4, 6.4))
     top, bottom = fig.subplots(2, 1, sharex=True)
-    top.loglog(f, [r["Z_abs_Ns_per_mm2"] for r in rows], "o", ms=4, label="computed")
+    top.loglog(f, [r[magnitude_key(r, "Z")] for r in rows], "o", ms=4, label="computed")
     top.set_ylabel(impedance_label(force))
     top.set_title(fitted(f"{title}: driving-point impedance" if title else
                          "driving-point impedance", fig))
@@ -597,12 +618,16 @@ def plot_impedance(rows: list[dict], path: Path, title: str = "",
     return path
 
 
+def impedance_unit(force: str) -> str:
+    """Z's unit for the force unit `force_unit` gives: Z = δf/(iω δd) is a force per mm/s, so
+    N·s/mm per mm of thickness in plane strain and N·s/mm in 3D."""
+    return "N·s/mm per mm" if force == "N/mm" else "N·s/mm"
+
+
 def impedance_label(force: str) -> str:
-    """|Z|'s axis label for the force unit `force_unit` gives: Z = δf/(iω δd) is a force per
-    mm/s, so N·s/mm per mm of thickness in plane strain and N·s/mm in 3D, a half model's named."""
-    if force == "N/mm":
-        return "|Z| (N·s/mm per mm)"
-    return "|Z| of the half model (N·s/mm)" if "half" in force else "|Z| (N·s/mm)"
+    """|Z|'s axis label for the force unit `force`, a half model's named."""
+    return f"|Z| of the half model ({impedance_unit(force)})" if "half" in force else \
+        f"|Z| ({impedance_unit(force)})"
 
 
 def plot_receptor_transfer(rows: list[dict], out: Path, population,

@@ -42,7 +42,8 @@ K carries the unit diagonal, the other matrices zero rows, the drive
 zero entries (the clamp does not move).
 
 Outputs per ω (`Response`): δx (real and imaginary parts), δf per unit δd, the dynamic stiffness
-K(ω) = δf/δd (N/mm per mm) and the driving-point impedance Z(ω) = δf/(iω δd) (N·s/mm per mm).
+K(ω) = δf/δd and the driving-point impedance Z(ω) = δf/(iω δd): N/mm per mm and N·s/mm per mm
+in plane strain, N/mm and N·s/mm in 3D.
 
 The pressed state (`press`): "held" steps the scene's pre-indentation (ramp and hold) and
 freezes the state at its end; "relaxed" is the model's own long-term equilibrium at the depth:
@@ -220,12 +221,13 @@ class Response:
 
     @property
     def stiffness(self) -> complex:
-        """K(ω) = δf/δd (N/mm per mm)."""
+        """K(ω) = δf/δd (N/mm per mm in plane strain, N/mm in 3D)."""
         return self.force
 
     @property
     def impedance(self) -> complex:
-        """Z(ω) = δf/(iω δd) (N·s/mm per mm): the driving-point mechanical impedance."""
+        """Z(ω) = δf/(iω δd): the driving-point mechanical impedance (N·s/mm per mm in plane
+        strain, N·s/mm in 3D)."""
         return self.force / (1j * self.omega)
 
     def displacement(self, unknown: int = 0) -> np.ndarray:

@@ -240,9 +240,11 @@ class FrequencyResult:
 
     - `summary`: summary.json as a dict (scene, pressed state, mesh, dofs, resonances, ...);
     - `response`: frequency_response.csv, columns as arrays (`frequency_Hz`,
-      `K_abs_N_per_mm2`, `K_phase_deg`, `Z_abs_Ns_per_mm2`, `Z_phase_deg`, ...);
-    - `frequencies` (Hz), `stiffness` K(ω) = δf/δd (N/mm per mm, complex) and `impedance`
-      Z(ω) = δf/(iω δd) (N·s/mm per mm, complex) at them;
+      `K_abs_N_per_mm2`, `K_phase_deg`, `Z_abs_Ns_per_mm2`, `Z_phase_deg`, ... in plane
+      strain; `K_abs_N_per_mm` and `Z_abs_Ns_per_mm` in 3D);
+    - `frequencies` (Hz), `stiffness` K(ω) = δf/δd and `impedance` Z(ω) = δf/(iω δd) at them
+      (complex; per mm of thickness in plane strain: N/mm per mm and N·s/mm per mm; in 3D
+      N/mm and N·s/mm, a half model's own: `summary["mirror_factor"]`);
     - `transfer`: receptor_transfer.csv, per frequency and receptor site the amplitude per µm
       of drive and phase of each stimulus quantity (`class` strings, `index` integers);
     - `thresholds`: thresholds.csv, per class, site and frequency the afferent thresholds
@@ -282,7 +284,8 @@ class FrequencyResult:
     @property
     def impedance(self) -> np.ndarray:
         r = self.response
-        return r["Z_abs_Ns_per_mm2"] * np.exp(1j * np.radians(r["Z_phase_deg"]))
+        magnitude = next(k for k in r if k.startswith("Z_abs_"))  # named by its unit
+        return r[magnitude] * np.exp(1j * np.radians(r["Z_phase_deg"]))
 
     @cached_property
     def transfer(self) -> dict[str, np.ndarray]:

@@ -387,3 +387,31 @@ def test_a_3d_population_keeps_the_sites_of_largest_peak_response():
     assert responsive_sites(h, 2).tolist() == [0, 1]
     assert responsive_sites(h, 3).tolist() == [0, 1, 2]
     assert responsive_sites(h, None).tolist() == responsive_sites(h, 9).tolist() == [0, 1, 2, 3]
+
+
+def test_the_response_columns_carry_the_units_of_the_run(tmp_path):
+    """frequency_response.csv names |K| and |Z| by their units: N/mm per mm and N·s/mm per mm
+    in plane strain (force per unit thickness), N/mm and N·s/mm in 3D (a force): a 3D file
+    whose header said per mm² would mislabel every value in it. The row holds the response's
+    values under those names, and FrequencyResult reads Z back from either file."""
+    from types import SimpleNamespace
+
+    from fingertip_dolfinx.frequency_response import response_columns, response_row
+    from fingertip_dolfinx.outputs import CsvLog
+    from fingertip_dolfinx.result import FrequencyResult
+
+    K, f = 3.0 - 4.0j, 100.0
+    r = SimpleNamespace(frequency=f, stiffness=K, impedance=K / (2j * math.pi * f),
+                        wall_time_s=0.1)
+    for unit, suffix in (("N/mm", "_per_mm2"), ("N", "_per_mm"), ("N (half model)", "_per_mm")):
+        columns = response_columns(unit)
+        assert {"K_abs_N" + suffix, "Z_abs_Ns" + suffix} <= set(columns)
+        row = response_row(r, columns)
+        assert row["K_abs_N" + suffix] == 5.0 and row["K_real"] == 3.0
+        assert row["Z_abs_Ns" + suffix] == pytest.approx(5.0 / (2 * math.pi * f), rel=1e-15)
+        out = tmp_path / unit.replace("/", "_per_").replace(" ", "_")
+        out.mkdir()
+        log = CsvLog(out / "frequency_response.csv", columns, MPI.COMM_SELF)
+        log.write([row])
+        log.close()
+        assert FrequencyResult(out).impedance[0] == pytest.approx(r.impedance, rel=1e-9)
