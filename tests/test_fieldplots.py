@@ -294,7 +294,7 @@ def test_the_3d_friction_figure_names_a_half_models_areas_and_forces(tmp_path, m
         area, force = (" ".join(ax.get_ylabel().split()) for ax in drawn[-1].axes)
         assert area == ("area on the half model (mm², reference)" if half else
                         "area (mm², reference)")
-        assert force == "force on the half model (N)" if half else "force (N)"
+        assert force == ("force on the half model (N)" if half else "force (N)")
 
 
 def test_the_spacing_figure_keeps_every_bar_and_its_peak_in_view(tmp_path, monkeypatch):
@@ -344,7 +344,7 @@ def _population_3d(title, path):  # one class (an SA1-only population): the narr
 def _impedance(title, path):
     from fingertip_dolfinx.frequency_response import plot_impedance
 
-    plot_impedance([{"frequency_Hz": f, "K_abs_N_per_mm2": 0.1 * f, "Z_abs_Ns_per_mm2": 0.01,
+    plot_impedance([{"frequency_Hz": f, "K_abs_N_per_mm": 0.1 * f, "Z_abs_Ns_per_mm": 0.01,
                      "Z_phase_deg": -80.0} for f in (10.0, 100.0, 1000.0)], path, title, "N")
 
 
