@@ -320,6 +320,32 @@ def test_the_2d_figure_has_a_panel_per_task_that_ran(tmp_path):
     assert abs(widths[1] / widths[0] - 2 / 3) < 0.01, widths
 
 
+def test_the_count_profiles_say_the_time_they_were_counted_over(tmp_path, monkeypatch):
+    """The counts are over the whole stimulus, whose length a scene override may change: the
+    profiles' axis gives the runs' common end (`stimulus_duration`), and no number where the
+    runs end at different times."""
+    from matplotlib.figure import Figure
+
+    from fingertip_dolfinx.studies.acuity import plot_acuity, stimulus_duration, summarise
+
+    for name, end in (("a", 0.5), ("b", 0.5), ("c", 2.0)):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "history.csv").write_text(f"time_s,force_N_per_mm\n0.1,0\n{end},1\n")
+    assert stimulus_duration([tmp_path / "a", tmp_path / "b"]) == 0.5
+    assert stimulus_duration([tmp_path / "a", tmp_path / "c"]) is None
+    assert stimulus_duration([tmp_path / "a", tmp_path / "missing"]) is None
+    drawn = []
+    monkeypatch.setattr(Figure, "savefig", lambda fig, *a, **k: drawn.append(fig))
+    x = np.linspace(-6.0, 6.0, 41)
+    counts = {k: (x, np.cos(x * (i + 1)) + 1.0) for i, k in enumerate(("grating-w1-A",
+                                                                        "grating-w1-B"))}
+    for duration, label in ((0.5, "expected SA1 spikes in 0.5 s"),
+                            (None, "expected SA1 spikes over the stimulus")):
+        result = {**summarise(counts, (1.0,), ()), "counted_over_s": duration}
+        plot_acuity(result, counts, tmp_path / "acuity.png")
+        assert drawn[-1].axes[1].get_ylabel() == label
+
+
 def test_counts_up_to_a_time_are_the_counts_of_the_samples_up_to_it():
     """`until` counts a run's spikes over 0..until only: the same as the samples cut there, and
     never more than over the whole run (a pair read before its end is compared over the time

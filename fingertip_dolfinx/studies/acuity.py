@@ -40,7 +40,7 @@ import numpy as np
 from mpi4py import MPI
 
 from ..errors import InputError
-from ..outputs import write_json
+from ..outputs import read_csv, write_json
 from .sweep import population_threshold
 
 #: The d′ at which two stimuli count as told apart.
@@ -200,11 +200,24 @@ def run_acuity(out, widths=WIDTHS, gaps=GAPS, overrides=(), progress: bool = Tru
         population = load_receptors(out / "sa1-row.toml")
         counts = {label: expected_counts(where, population) for label, _, where in jobs}
         result = summarise(counts, widths, gaps)
+        result["counted_over_s"] = stimulus_duration([where for _, _, where in jobs])
         _write_tables(out, counts, result)
         plot_acuity(result, counts, out / "acuity.png")
     result = MPI.COMM_WORLD.bcast(result, root=0)
     write_json(out / "summary.json", result, MPI.COMM_WORLD)
     return result
+
+
+def stimulus_duration(runs) -> float | None:
+    """The time every run in `runs` (folders) ended at, over which its spikes are counted
+    (`expected_counts`: the whole run), or None if they differ or a run has no history."""
+    ends = set()
+    for where in runs:
+        path = Path(where) / "history.csv"
+        if not path.exists():
+            return None
+        ends.add(round(float(read_csv(path)["time_s"].max()), 9))
+    return ends.pop() if len(ends) == 1 else None
 
 
 def summarise(counts: dict, widths, gaps) -> dict:
@@ -300,15 +313,16 @@ def plot_acuity(result: dict, counts: dict, path: Path) -> None:
     ax.set(xlabel="ridge width or gap (mm)", ylabel="d′ of one SA1 row (dots: its offsets)",
            title="SA1 ideal observer, Poisson counts")
     ax.legend(fontsize=7)
+    duration = result.get("counted_over_s")
     for panel, name in zip(panels, run):
         w = min(result[name]["widths_mm"], key=lambda v: abs(v - 1.0))  # the one nearest 1 mm
         if name == "grating":
             _profiles(panel, counts, f"grating-w{w:g}-A", f"grating-w{w:g}-B",
                       ("ridge at x = 0", "groove at x = 0"),
-                      f"grating, {w:g} mm ridges and grooves")
+                      f"grating, {w:g} mm ridges and grooves", duration)
         else:
             _profiles(panel, counts, "gap-g0", f"gap-g{w:g}", ("no gap", f"{w:g} mm gap"),
-                      f"{result['gap_bar_mm']:g} mm bar, with and without a gap")
+                      f"{result['gap_bar_mm']:g} mm bar, with and without a gap", duration)
     fig.savefig(path, dpi=150)
 
 
@@ -321,12 +335,15 @@ def _threshold_text(task: dict) -> str:
     return f"> {max(task['widths_mm']):g} (d′ < 1 at the largest)"
 
 
-def _profiles(ax, counts: dict, a: str, b: str, labels, title: str) -> None:
-    """The expected counts of the dense row of two runs (if both were run)."""
+def _profiles(ax, counts: dict, a: str, b: str, labels, title: str,
+              duration: float | None = None) -> None:
+    """The expected counts of the dense row of two runs (if both were run), counted over the
+    whole stimulus (`duration` s, where known: `stimulus_duration`)."""
     for label, name, style in zip((a, b), labels, ("o-", "s--")):
         if label in counts:
             ax.plot(*counts[label], style, ms=3, label=name)
-    ax.set(xlabel="x of the site (mm)", ylabel="expected SA1 spikes in 1 s", title=title,
+    over = f"in {duration:g} s" if duration else "over the stimulus"
+    ax.set(xlabel="x of the site (mm)", ylabel=f"expected SA1 spikes {over}", title=title,
            xlim=(-5, 5))
     ax.legend(fontsize=7)
 
@@ -488,7 +505,6 @@ def count_acuity_3d(out, widths=WIDTHS_3D, gaps=GAPS_3D, overrides=(),
     counts over each finished run, or, given `until` (s), over 0 to `until` of runs read
     before their end (every run must have reached it). Writes the study's files into `out`."""
     from ..afferents.receptors import load_receptors
-    from ..outputs import read_csv
 
     out = Path(out)
     jobs = study_jobs_3d(out, widths, gaps, overrides)
