@@ -781,7 +781,7 @@ def _chart(result: dict, path: Path):
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("wall time of the time stepping (s)")
-    ax.set_ylabel("largest relative error of the key outputs")
+    ax.set_ylabel(f"largest relative error of the key outputs (floor {floor:g})")
     ax.set_title(f"{result['scene']}: error against cost")
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=7)
