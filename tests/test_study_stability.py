@@ -139,3 +139,22 @@ def test_unstable_foam_is_detected_and_the_paper_sets_are_not(study):
     for mode in ("warn", "error"):
         (r,) = pick(rows, "5", f"stability.check_state ({mode})")
         assert r["detected"] and "violate the Drucker condition" in r["message"]
+
+
+def test_the_nitsche_chart_draws_an_exact_constraint_at_its_floor(tmp_path, monkeypatch):
+    """A penetration of 0 (the constraint met exactly) has no place on the log axis: it is
+    drawn at the floor the axis names, not dropped; a failed run's (NaN) stays out."""
+    from matplotlib.figure import Figure
+
+    from fingertip_dolfinx.studies.stability import _figure_nitsche
+
+    drawn = []
+    monkeypatch.setattr(Figure, "savefig", lambda fig, *a, **k: drawn.append(fig))
+    rows = [{"method": "nitsche_theta1", "value": g, "penetration_over_depth": p,
+             "newton_iterations": 4, "converged": ok}
+            for g, p, ok in ((1.0, 1e-2, True), (10.0, 0.0, True), (100.0, float("nan"), False))]
+    _figure_nitsche(tmp_path, rows)
+    ax = drawn[-1].axes[0]
+    y = ax.get_lines()[0].get_ydata()
+    assert y[0] == 1e-2 and y[1] == 1e-6 and y[2] != y[2]  # the NaN
+    assert "floor 1e-6" in ax.get_ylabel()

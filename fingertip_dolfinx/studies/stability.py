@@ -642,7 +642,8 @@ def _figure_nitsche(out: Path, r2: list[dict]) -> Path:
     for method in dict.fromkeys(r["method"] for r in r2):
         rs = [r for r in r2 if r["method"] == method]
         g = [r["value"] for r in rs]
-        pen = [r.get("penetration_over_depth", np.nan) for r in rs]
+        # a penetration of 0 (the constraint met exactly) has no place on a log axis: floored
+        pen = [max(r.get("penetration_over_depth", np.nan), 1e-6) for r in rs]
         line, = a1.loglog(g, pen, "o-", label=method.replace("theta", "θ"))
         a2.semilogx(g, [r["newton_iterations"] for r in rs], "o-", color=line.get_color(),
                     label=method.replace("theta", "θ"))
@@ -650,7 +651,7 @@ def _figure_nitsche(out: Path, r2: list[dict]) -> Path:
             if not r["converged"]:
                 a2.plot(r["value"], r["newton_iterations"], "x", ms=12,
                         color=line.get_color())
-    a1.set(xlabel="γ0", ylabel="max penetration / indentation")
+    a1.set(xlabel="γ0", ylabel="max penetration / indentation (floor 1e-6)")
     a2.set(xlabel="γ0", ylabel="Newton iterations (3 steps; × = failed)")
     a1.legend()
     fig.suptitle("Nitsche contact, rigid cylinder on an elastic block")
