@@ -16,8 +16,8 @@ with the scene's 0.05 they would be chord iterations on the kept matrix, which t
 solves in one iteration.
 
 Measured 2026-11-27, 08:36-08:49 UTC, the runs back to back, each alone on the machine (load
-from its own 2 ranks; today's machine ran the scene's command in 227 s, yesterday's idle
-measurement was 194 s: compare the counts and the rows with each other):
+from its own 2 ranks; the machine then ran the scene's command in 227 s, against 194 s at
+07:26 UTC the same morning: compare the counts and the rows with each other):
 
 | line-load-3d, 2 ranks | steps | Newton | LU | kept solves (fallbacks) | triangular solves | wall |
 | --- | ---: | ---: | ---: | ---: | ---: | ---: |
