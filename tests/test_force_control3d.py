@@ -5,6 +5,7 @@ footing of its `force_N` (summary.json's `mirror_factor` = 2 gives the whole's).
 
 import numpy as np
 import pytest
+from mpi4py import MPI
 
 from fingertip_dolfinx.outputs import read_csv
 from fingertip_dolfinx.runner import run_scene
@@ -51,3 +52,30 @@ def test_the_plate_dragged_along_the_3d_finger_holds_the_whole_fingers_force(tmp
     tangential = np.hypot(h["tangential_x_force_N"], h["tangential_z_force_N"])
     assert np.all(tangential <= mu * h["force_N"] * (1 + 1e-9)), tangential / h["force_N"]
     assert h["tangential_z_force_N"][-1] > 0.5 * mu * force[-1]  # dragged, with friction
+
+
+@pytest.mark.mpi
+@pytest.mark.skipif(MPI.COMM_WORLD.size == 1, reason="one rank: the slow test above")
+def test_the_held_force_is_held_on_two_ranks(shared_tmp_path, comm):
+    """Under mpiexec the force controller's force is a sum over the ranks (all-reduced), so
+    every rank solves for the same depth: the run ends (ranks that chose different depths would
+    wait on each other), and the steps onto and along the held force keep the whole finger's
+    force within rtol of the target, balanced by the support, deeper than the 0.5 mm press,
+    within Coulomb's bound; every rank returns the same summary. The drag to 0.75 s only."""
+    scene = load_scene("shear-3d", [
+        *COARSE, "protocol.end_time=0.75", "output.times=[0.5, 0.75]", "steps.dt_initial=0.5",
+        "steps.dt_max=0.5", "protocol.tangential={times = [0.0, 0.5, 0.75], values = [0.0, 0.0,"
+        " 0.2], direction = [0.0, 1.0]}", held()])
+    summary = run_scene(scene, shared_tmp_path, progress=False)
+    ours = (summary["time_steps"], summary["newton_iterations"])
+    assert comm.allgather(ours) == [ours] * comm.size
+    h = read_csv(shared_tmp_path / "history.csv")
+    on = h["time_s"] > 0.5 + 1e-9
+    assert on.sum() >= 1 and h["time_s"][-1] == pytest.approx(0.75)
+    force = h["force_N"][on]
+    assert np.all(np.abs(2 * force - WHOLE) <= RTOL * WHOLE), 2 * force
+    np.testing.assert_allclose(h["reaction_N"][on], force, rtol=1e-5)
+    assert np.all(h["indenter_displacement_mm"][on] > 0.5 + 5e-3)
+    mu = scene.indenters[0].friction
+    tangential = np.hypot(h["tangential_x_force_N"], h["tangential_z_force_N"])
+    assert np.all(tangential <= mu * h["force_N"] * (1 + 1e-9)), tangential / h["force_N"]
