@@ -3,12 +3,15 @@ surface deflection, depth profiles); small values shown in a smaller unit (`disp
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import matplotlib
 import numpy as np
 from dolfinx.mesh import CellType, entities_to_geometry
+from matplotlib.cm import ScalarMappable
 from matplotlib.collections import LineCollection, PolyCollection
+from matplotlib.colors import Normalize
 from matplotlib.figure import Figure  # no pyplot: no backend is chosen, none is changed
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
@@ -151,8 +154,6 @@ def fitted(text: str, fig, fontsize: float = 12.0) -> str:
     a scene's title (`Scene.title`, up to 60 characters with the overrides) and what a figure
     adds to it must not run off the figure's edges. A character is taken as 0.6 em, wider
     than DejaVu Sans's average (about 0.55 em), so a line errs on the short side."""
-    import textwrap
-
     chars = int(0.95 * fig.get_figwidth() * 72.0 / (0.6 * fontsize))
     return text if len(text) <= chars else "\n".join(textwrap.wrap(text, chars))
 
@@ -333,9 +334,6 @@ def _time_colours(fig, ax, times) -> list:
     """The colour of each output time's curve: the colour cycle's (and a legend, drawn by the
     caller) up to LEGEND_TIMES; beyond, where the cycle's 10 colours would repeat and the
     legend outgrow the axes, a sequential colour map and a colour bar of the time."""
-    from matplotlib.cm import ScalarMappable
-    from matplotlib.colors import Normalize
-
     if len(times) <= LEGEND_TIMES:
         return [f"C{i}" for i in range(len(times))]
     norm, cmap = Normalize(float(times[0]), float(times[-1])), matplotlib.colormaps["viridis"]
@@ -460,8 +458,6 @@ def plot_population(afferents: dict, outer, path: Path, title: str = "") -> None
     """The afferents of a run at their sites on the section (reference positions), coloured
     by their mean firing rate over the run, one marker per class, with the palmar outer
     surface for orientation (afferents.csv's columns; `outer`: the section's outer ellipse)."""
-    from matplotlib.colors import Normalize
-
     if "z_mm" in afferents:
         return plot_population_3d(afferents, path, title)
     fig = Figure(figsize=(8.0, 4.2))
@@ -494,8 +490,6 @@ def plot_population_3d(afferents: dict, path: Path, title: str = "") -> None:
     """A 3D run's afferents seen from the palm (their sites projected on the x–z plane: across
     and along the finger), one panel per class, coloured by mean firing rate over the run
     (one colour scale); afferents.csv's columns."""
-    from matplotlib.colors import Normalize
-
     names = [n for n in CLASS_MARKERS if np.any(afferents["class"] == n)]
     fig = Figure(figsize=(3.2 * len(names) + 1.2, 4.8), layout="constrained")
     axes = np.atleast_1d(fig.subplots(1, len(names), sharex=True, sharey=True))

@@ -106,6 +106,17 @@ def kept_factor_options(limit: int) -> dict:
             "ksp_error_if_not_converged": False}
 
 
+def flexible_gmres(ksp: PETSc.KSP, rtol: float, atol: float, max_it: int) -> None:
+    """Make `ksp` flexible GMRES around its PC, right-preconditioned (its tolerances on the
+    true residual), without restart within its `max_it` iterations: the Krylov wrapper of
+    kept LU factors (`use_kept_factors`, the tangent predictor's in stepper.py)."""
+    ksp.setType(PETSc.KSP.Type.FGMRES)
+    ksp.setGMRESRestart(max_it)
+    ksp.setPCSide(PETSc.PC.Side.RIGHT)
+    ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
+    ksp.setTolerances(rtol=rtol, atol=atol, max_it=max_it)
+
+
 def use_kept_factors(ksp: PETSc.KSP, limit: int, kept: bool) -> None:
     """Switch the direct route's KSP between its two modes under StepOptions.
     hold_factor_reuse = `limit`: `kept`, FGMRES as `kept_factor_options` (the tolerance on the
@@ -115,13 +126,9 @@ def use_kept_factors(ksp: PETSc.KSP, limit: int, kept: bool) -> None:
     the solution from them, where GMRES right-preconditioned applies the LU once more at the
     end: a pair of triangular solves fewer per solve (the same iterates in exact
     arithmetic). The LU (the PC and its factors) is the same object in both."""
-    if kept:  # kept_factor_options' settings, flexible
+    if kept:  # kept_factor_options' settings, flexible (its restart is its iteration cap)
         o = kept_factor_options(limit)
-        ksp.setType(PETSc.KSP.Type.FGMRES)
-        ksp.setGMRESRestart(o["ksp_gmres_restart"])
-        ksp.setPCSide(PETSc.PC.Side.RIGHT)
-        ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
-        ksp.setTolerances(rtol=o["ksp_rtol"], atol=o["ksp_atol"], max_it=o["ksp_max_it"])
+        flexible_gmres(ksp, o["ksp_rtol"], o["ksp_atol"], o["ksp_max_it"])
     else:
         ksp.setType(PETSc.KSP.Type.PREONLY)
         ksp.setPCSide(PETSc.PC.Side.LEFT)

@@ -91,7 +91,13 @@ from .diagnosis import (
     error_stall_error,
     newton_failure,
 )
-from .linear import DIRECT_OPTIONS, LinearSolver, kept_factor_options, use_kept_factors
+from .linear import (
+    DIRECT_OPTIONS,
+    LinearSolver,
+    flexible_gmres,
+    kept_factor_options,
+    use_kept_factors,
+)
 from .options import (
     DEFAULT_PETSC_OPTIONS,
     SECOND_ORDER_RATE,
@@ -1054,10 +1060,7 @@ def _kept_factor_gmres(comm, pc: PETSc.PC, rtol: float, max_it: int) -> PETSc.KS
     GMRES applies the factors once more at the end (a pair of triangular solves per predictor;
     the same iterates in exact arithmetic)."""
     ksp = PETSc.KSP().create(comm)
-    ksp.setType(PETSc.KSP.Type.FGMRES)
-    ksp.setGMRESRestart(max_it)
-    ksp.setPCSide(PETSc.PC.Side.RIGHT)
-    ksp.setTolerances(rtol=rtol, atol=0.0, max_it=max_it)
+    flexible_gmres(ksp, rtol, 0.0, max_it)
     shell = ksp.getPC()
     shell.setType(PETSc.PC.Type.PYTHON)
     shell.setPythonContext(_Factors(pc))
