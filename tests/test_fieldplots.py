@@ -297,6 +297,46 @@ def test_the_3d_friction_figure_names_a_half_models_areas_and_forces(tmp_path, m
         assert force == ("force on the half model (N)" if half else "force (N)")
 
 
+def test_the_coulomb_panel_legend_covers_no_plotted_point(tmp_path, monkeypatch):
+    """The forces panel of a sliding run, under its stick/slip map (slide-3d's shape: the
+    press to 0.01 s, then the drag): the normal force flat at the top, the friction rising
+    to μ times it, so the curves fill the panel's width; its legend must lie where no curve
+    is drawn (it covered the friction's rise in slide-3d's figure)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from fingertip_dolfinx.plotting.figures import plot_friction_3d
+
+    drawn = []
+    monkeypatch.setattr(Figure, "savefig", lambda fig, *a, **k: drawn.append(fig))
+    t = np.linspace(0.0025, 0.035, 14)
+    normal = 7.5e-4 * np.minimum(t / 0.01, 1.0)
+    friction = np.interp(t, [0.0, 0.01, 0.0145, 0.035], [0.0, 4e-5, 3.8e-4, 3.75e-4])
+    zero = 0.0 * t
+    history = {"time_s": t, "pressure_normal_force_N": normal, "force_N": normal,
+               "tangential_x_force_N": zero, "tangential_z_force_N": friction,
+               "pressure_tangential_x_force_N": zero, "pressure_tangential_z_force_N": zero,
+               "contact_area_mm2": 1.1 + zero, "stick_area_mm2": zero}
+    z = np.linspace(5.0, 12.0, 8)
+    stick_slip = {"x_mm": np.zeros(t.size * z.size), "z_mm": np.tile(z, t.size),
+                  "time_s": np.repeat(t, z.size),
+                  "contact_state": np.tile(np.where(abs(z - 8.5) < 1.0, 1, 0), t.size)}
+    plot_friction_3d(history, tmp_path / "friction.png", 0.5, stick_slip=stick_slip,
+                     half=True)
+    fig = drawn[-1]
+    FigureCanvasAgg(fig).draw()
+    ax = fig.axes[-1]
+    box = ax.get_legend().get_window_extent()
+    for line in ax.get_lines():  # the lines between the points too, 50 samples a segment
+        xy = line.get_xydata()
+        s = np.linspace(0.0, len(xy) - 1.0, 50 * (len(xy) - 1) + 1)
+        dense = np.column_stack([np.interp(s, np.arange(len(xy)), xy[:, i]) for i in (0, 1)])
+        points = ax.transData.transform(dense)
+        inside = ((points[:, 0] > box.x0) & (points[:, 0] < box.x1)
+                  & (points[:, 1] > box.y0) & (points[:, 1] < box.y1))
+        assert not inside.any(), f"{line.get_label()!r} drawn under the legend"
+
+
 def test_the_spacing_figure_keeps_every_bar_and_its_peak_in_view(tmp_path, monkeypatch):
     """The profiles by spacing are shown over ±4 mm, enough for the spacings of the paper
     (up to 4 mm: bar centres at ±2 mm); a wider spacing (10 mm: bars at ±5 mm, within the

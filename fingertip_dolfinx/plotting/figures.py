@@ -254,6 +254,11 @@ def _state_map(ax, stick_slip: dict, key: str, label: str) -> None:
     ax.set_ylabel(label)
 
 
+#: The force panels' upper limit over their largest value: room above the curves for the
+#: three-line legend.
+LEGEND_HEADROOM = 1.7
+
+
 def _coulomb_panel(ax, t, normal, tangential, mu: float, quantity: str, name: str,
                    normal_name: str = "normal force") -> None:
     """The normal and tangential forces against time with Coulomb's bound μ × normal."""
@@ -263,7 +268,10 @@ def _coulomb_panel(ax, t, normal, tangential, mu: float, quantity: str, name: st
     ax.plot(t, factor * mu * normal, "--", color="0.4", label=f"μ × {normal_name} (μ = {mu:g})")
     ax.set_ylabel(label)
     ax.set_xlabel("time (s)")
-    ax.legend(fontsize=8)
+    # The three curves fill the panel once the friction saturates at the bound: headroom
+    # above the normal force keeps the legend off them.
+    ax.set_ylim(top=LEGEND_HEADROOM * factor * float(np.max(normal)))
+    ax.legend(fontsize=8, loc="upper left", ncols=1)
     ax.grid(alpha=0.3)
 
 
