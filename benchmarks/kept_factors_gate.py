@@ -42,12 +42,22 @@ under it) carry that into the path. This script, run again after the table (θ =
 08:53-08:58 UTC, pictures off), repeated the 3D row: 69 Newton iterations, 36
 factorisations, 585 triangular solves, 5 fallbacks. Not kept: no scene key.
 
-    mpiexec -n 2 python benchmarks/kept_factors_gate.py [--off] [--theta 0.2] [--out DIR]
+Gated on the contact set instead (`--set-gate 0`: kept factors while no penetrating quadrature
+point differs from the iterate last factorised; 2026-11-27, 10:44-10:47 UTC, idle, pictures
+off): 69 Newton iterations, 48 factorisations, 215 triangular solves, stepping 199.7 s, against
+the scene's 73, 45, 241 and 189.9 s (`--off`, 10:47-10:51 UTC). The gate opened 11 times, 10 of
+them at the iterate Newton accepted (no solve follows): the set reaches its converged form only
+at a step's last iterate or the one before. Its one gated solve took 4 FGMRES iterations.
+Rerun at load 3-7: the same counts.
+
+    mpiexec -n 2 python benchmarks/kept_factors_gate.py [--off] [--theta 0.2] [--set-gate K]
+        [--out DIR]
     python benchmarks/kept_factors_gate.py --scene line-load-1pct --set steps.hold_factor_reuse=15
 """
 
 import time
 
+import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 from timing import scene_and_out, scene_parser
@@ -93,8 +103,37 @@ class ContractionGate:
         """FactorReuse's own post-solve (its fallback), and the iterations of a kept solve."""
         kept, its = self.factor._active, ksp.getIterationNumber()
         self.factor._postsolve(ksp, b, x)
-        if kept:
-            self.solves.append(its)
+        if kept:  # a held step's solve is marked "h"
+            self.solves.append(f"h{its}" if self.held else its)
+
+
+class SetGate(ContractionGate):
+    """Kept factors for the solve at an iterate whose contact set (`NitscheContact.active_set`,
+    the penetrating quadrature points) differs from the set of the iterate last factorised by
+    at most `most` points over all ranks; held steps as the scene."""
+
+    def __init__(self, stepper, contact, comm, most: int):
+        super().__init__(stepper, 0.0)
+        self.contact, self.comm, self.most = contact, comm, most
+        self.factored_set, self.current, self.switches = None, None, []
+
+    def monitor(self, snes, its: int, norm: float) -> None:
+        """After each iteration (and before the first): this iterate's set, the next mode."""
+        self.current = self.contact.active_set().copy()
+        differ = (self.comm.allreduce(int(np.count_nonzero(self.current != self.factored_set)))
+                  if self.factored_set is not None else None)
+        fast = differ is not None and differ <= self.most
+        self._switch(self.held or fast)
+        if not self.factor._active:
+            self.factored_set = self.current  # this iterate's Jacobian is factorised
+        elif fast:
+            self.switches.append(differ)
+
+    def post_solve(self, ksp, b, x) -> None:
+        fallbacks = self.factor.fallbacks
+        super().post_solve(ksp, b, x)
+        if self.factor.fallbacks > fallbacks:
+            self.factored_set = self.current
 
 
 def main():
@@ -102,6 +141,9 @@ def main():
     parser.add_argument("--theta", type=float, default=0.2,
                         help="keep the factors after a cut of the residual to <= theta")
     parser.add_argument("--off", action="store_true", help="the scene as it is")
+    parser.add_argument("--set-gate", type=int, default=None, metavar="K",
+                        help="gate on the contact set instead: kept factors while at most K "
+                             "points differ from the set of the iterate last factorised")
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
     overrides = args.overrides + ([] if args.off else ["steps.jacobian_reuse=0"])
@@ -110,7 +152,12 @@ def main():
     job = Run(scene, out, comm, resume=False, progress=False)
     if job.stepper.factor is None:
         raise SystemExit("the scene keeps no factors: add --set steps.hold_factor_reuse=15")
-    gate = None if args.off else ContractionGate(job.stepper, args.theta)
+    if args.off:
+        gate = None
+    elif args.set_gate is not None:
+        gate = SetGate(job.stepper, job.problem.contact, comm, args.set_gate)
+    else:
+        gate = ContractionGate(job.stepper, args.theta)
     wall = time.perf_counter()
     job.run()
     wall = time.perf_counter() - wall
@@ -127,6 +174,9 @@ def main():
     print("per step:", " ".join(str(int(i)) for i in h["newton_iterations"]))
     if gate is not None:
         print("FGMRES iterations of the solves on kept factors:", gate.solves)
+        if isinstance(gate, SetGate):
+            print("points differing where the gate opened (at the accepted iterate too, "
+                  "where no solve follows):", gate.switches)
 
 
 if __name__ == "__main__":
