@@ -28,7 +28,13 @@ the penalty's. UZAWA_MAX=0 (lagged): 123 iterations, 112 factorisations, forces 
 is small and the edge's nodes toggle: 177 iterations, a cut. With γ0 = 10 (a soft inner law,
 the multiplier carrying the load) Newton fails inside the loop at 0.24 s, steps cut to 0.4 ms.
 
+In 3D (line-load-3d's ramp to 1 s, 2 ranks, 2026-11-27): 16 steps, 151 Newton iterations and
+112 factorisations against the penalty's 10, 59 and 42; force at 1 s +0.17 %, penetration
+0.028 µm at most (penalty 2.38 µm).
+
     PYTHONPATH=.. python contact_uzawa.py --scene line-load-1pct [--set KEY=VALUE] [--newton]
+    mpiexec -n 2 python contact_uzawa.py --scene line-load-3d --set protocol.end_time=1.0 \
+        --set "output.times=[1.0]" --set output.pictures=false
     (environment: UZAWA_TOL=1e-5 mm, UZAWA_MAX=10)
 """
 

@@ -163,9 +163,12 @@ def main():
           f"{bound_cpu:.2f} s, stepping CPU {stepping_cpu / bound_cpu:.2f} times it")
     print(f"lower bound (one Jacobian + LU + solve per step) {bound:.2f} s; ratio: solving "
           f"{solving / bound:.2f}, stepping {stepping / bound:.2f}")
-    forces = summary["force_at_output_times_N_per_mm"]
-    print("force at output times: " + ", ".join(f"{k} s {v:.6g} N/mm" for k, v in forces.items()))
-    print(f"peak force {summary['peak_force_N_per_mm']:.6g} N/mm; max penetration "
+    unit = "N" if "peak_force_N" in summary else "N_per_mm"  # 3D: a (half) model's newtons
+    shown = unit.replace("_per_", "/")
+    forces = summary[f"force_at_output_times_{unit}"]
+    print("force at output times: " + ", ".join(f"{k} s {v:.6g} {shown}"
+                                                for k, v in forces.items()))
+    print(f"peak force {summary[f'peak_force_{unit}']:.6g} {shown}; max penetration "
           f"{1e3 * summary['max_penetration_mm']:.3g} µm; results in {out}")
     if newton is not None:
         newton.summary()
