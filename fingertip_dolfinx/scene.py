@@ -659,6 +659,14 @@ class _Blame:
         elif table is not None:
             rest = table
         source = self._source(table, words)
+        kind = self.sources.get((table, "kind")) if "unknown key" in error.problem else None
+        if kind is not None and (source is None or self.order[kind] > self.order[source]):
+            # keys the table's new kind does not take: the change of kind is at fault (a
+            # `--set protocol.kind=...` keeps the file's ramp-hold keys), not the file
+            return InputError(f"{kind}: {rest}", error.problem,
+                              f"{error.fix.removesuffix(' (check the spelling).')}; a new kind "
+                              f"keeps the scene's other {table} keys: give the {table} table "
+                              "whole, e.g. --set '" + table + "={kind = ..., ...}'.")
         if source is None:
             return error
         return InputError(f"{source}: {rest}", error.problem, error.fix)

@@ -269,3 +269,20 @@ def test_sweep_spots_sit_under_the_bars_and_midway_at_the_output_depth():
         assert {depth for _, depth in scene.section.mesh.spots} == {scene.depths[0]}
         assert sorted(i.centre_x for i in scene.indenters) == [-d / 2, d / 2]
     assert sweep_scenes("2pt", spacings[:1])[0].section.mesh.spots == ()
+
+
+def test_a_changed_protocol_kind_is_blamed_for_the_keys_it_does_not_take():
+    """`--set protocol.kind=piecewise-linear` keeps the file's ramp-hold keys, which the new
+    kind refuses: the message names the --set that changed the kind, not the built-in file
+    (which was blamed before), and says to give the table whole. A misspelled key of the
+    file's own kind is still blamed on its --set."""
+    from fingertip_dolfinx.scene import Override
+
+    with pytest.raises(InputError) as error:
+        load_scene("1pt", [Override("protocol.kind=piecewise-linear",
+                                    "--set protocol.kind=piecewise-linear")])
+    assert error.value.where.startswith("--set protocol.kind=piecewise-linear: ")
+    assert "1pt.toml" not in str(error.value) and "protocol={kind" in error.value.fix
+    with pytest.raises(InputError) as error:
+        load_scene("1pt", [Override("protocol.dept=1", "--set protocol.dept=1")])
+    assert error.value.where.startswith("--set protocol.dept=1: ")
