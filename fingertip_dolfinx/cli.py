@@ -153,7 +153,8 @@ def _add_sweep(subparsers) -> None:
 def _add_study(subparsers) -> None:
     p = subparsers.add_parser(
         "study",
-        help="studies: model fidelity per scene, numerical stability where methods fail",
+        help="studies: accuracy (error against cost), fidelity (which physics a scene needs), "
+        "stability (where methods fail), acuity (gratings and gaps: SA1 thresholds)",
         description="accuracy: the scene over mesh sizes, element families and time steps, "
         "errors against a Richardson estimate, the Pareto front of error against wall time "
         "(DIR/accuracy.csv, .md, .png). "

@@ -59,6 +59,14 @@ def test_malformed_number_and_help(capsys):
         assert option in help_text
 
 
+def test_the_top_level_help_names_every_study(capsys):
+    """`fingertip --help` lists what `study` runs: every kind it takes (it named two of four)."""
+    assert main(["--help"]) == 0
+    out = capsys.readouterr().out
+    study = out[out.index("    study"):out.index("options:")]  # its wrapped help lines
+    assert all(kind in study for kind in ("accuracy", "fidelity", "stability", "acuity"))
+
+
 def test_command_line_error_has_no_traceback(tmp_path):
     bad = tmp_path / "finger.toml"
     bad.write_text("[nail]\nhalf_angle = 120.0\n")
