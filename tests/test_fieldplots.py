@@ -441,3 +441,36 @@ def test_the_colour_bar_caption_fits_the_picture(extremes):
     plotter.close()
     columns = np.flatnonzero(ink.any(0))
     assert columns[0] > 5 and columns[-1] < WINDOW_SIZE[0] - 5, (columns[0], columns[-1])
+
+
+def test_the_sweep_figure_shows_small_values_in_smaller_units(tmp_path, monkeypatch):
+    """sweep.png states forces below 0.1 N/mm in mN/mm and an SED below 0.1 MPa in kPa, as the
+    runs' own figures do (docs/guide/figures.md), with the values scaled to match; before, its
+    panels read N/mm and MPa with a x10^-3 offset above the axis."""
+    from matplotlib.figure import Figure
+
+    from fingertip_dolfinx.keys import KEY_OUTPUTS
+    from fingertip_dolfinx.studies.parameters import _plot
+
+    drawn, save = [], Figure.savefig
+    monkeypatch.setattr(Figure, "savefig", lambda fig, *a, **k: (drawn.append(fig),
+                                                                   save(fig, *a, **k)))
+    rows = []
+    for i, k0 in enumerate((1e-3, 1.0)):
+        (tmp_path / f"k0={k0:g}").mkdir()
+        (tmp_path / f"k0={k0:g}" / "history.csv").write_text(
+            f"time_s,force_N_per_mm\n0.5,0.7e-3\n1.0,{1.44e-3 - 1e-5 * i}\n")
+        row = {"label": f"k0={k0:g}", "value": k0}
+        for key in KEY_OUTPUTS:
+            row[key.column] = {"force": 1.44e-3, "sed": 2.2e-4}.get(key.quantity, 0.5) - 1e-6 * i
+            row[f"{key.column}_t_s"] = 1.0
+        rows.append(row)
+    _plot(tmp_path, {"scene": "1pt", "key": "materials.subcutaneous.permeability.k0",
+                     "factors": [], "rows": rows})
+    axes = drawn[-1].axes
+    assert axes[0].get_ylabel() == "force (mN/mm)"
+    assert max(line.get_ydata().max() for line in axes[0].lines) == pytest.approx(1.44)
+    titles = {ax.get_title().split("\n")[0] for ax in axes[1:8]}
+    assert {"force (mN/mm)", "SED (kPa)", "deflection (mm)"} <= titles, titles
+    sed = next(ax for ax in axes[1:8] if ax.get_title().startswith("SED"))
+    assert sed.collections[0].get_offsets()[:, 1].max() == pytest.approx(0.22)
