@@ -286,3 +286,19 @@ def test_a_changed_protocol_kind_is_blamed_for_the_keys_it_does_not_take():
     with pytest.raises(InputError) as error:
         load_scene("1pt", [Override("protocol.dept=1", "--set protocol.dept=1")])
     assert error.value.where.startswith("--set protocol.dept=1: ")
+
+
+def test_a_scan_run_off_its_grating_blames_the_path_that_was_changed():
+    """The scan scene with its path lengthened to 20 mm (`--set protocol.tangential...`): the
+    grating (its outermost ridges' centres 18 mm apart) cannot cover the pulp throughout. The
+    refusal names the --set that lengthened the path, not the built-in scene file (blamed
+    before, for the indenter it names), and says the scan is longer than the grating instead
+    of giving an interval that ends before it starts."""
+    from fingertip_dolfinx.scene import Override
+
+    text = "protocol.tangential.values=[0.0, 0.0, 20.0]"
+    with pytest.raises(InputError) as error:
+        load_scene("scan", [Override(text, f"--set {text}")])
+    assert error.value.where.startswith(f"--set {text}: indenters[0]"), error.value.where
+    assert "the scan (20 mm) is longer than the span of its outermost ridges' centres (18 mm)" \
+        in error.value.problem
