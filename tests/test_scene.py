@@ -302,3 +302,21 @@ def test_a_scan_run_off_its_grating_blames_the_path_that_was_changed():
     assert error.value.where.startswith(f"--set {text}: indenters[0]"), error.value.where
     assert "the scan (20 mm) is longer than the span of its outermost ridges' centres (18 mm)" \
         in error.value.problem
+
+
+@pytest.mark.parametrize("scene, text, problem", [
+    ("line-load", "protocol.end_time=50", "output.times: (1.0, 100.0) must lie in"),
+    ("1pt", "section.mesh.min_size=5", "section.mesh.max_size: 0.8 mm is smaller"),
+    ("1pt", "section.mesh.max_size=3", "section.mesh.bone_size: 1.5 mm is smaller"),
+    ("line-load", "section.mesh.min_size=0.01", "section.mesh.tip_size: 0.02 mm is coarser"),
+])
+def test_a_relation_broken_by_an_override_names_the_override(scene, text, problem):
+    """Two keys that must agree (the output times and the end, the mesh sizes): when an
+    override changes one, the refusal names that override, not the built-in file that gave
+    the other (which it blamed before: 'a built-in file is never blamed for a value you
+    gave', docs/guide/scenes.md)."""
+    from fingertip_dolfinx.scene import Override
+
+    with pytest.raises(InputError) as error:
+        load_scene(scene, [Override(text, f"--set {text}")])
+    assert str(error.value).startswith(f"--set {text}: {problem}"), str(error.value)
