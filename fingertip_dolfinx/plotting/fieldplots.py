@@ -59,7 +59,7 @@ WINDOW_SIZE = (1600, 1200)
 #: r=5]" read "indenters=(cylinder r=5)", not the override given.
 TEXT_FONT = font_manager.findfont("DejaVu Sans")
 #: The longest caption drawn at 14 points (characters).
-CAPTION_CHARACTERS = 105
+CAPTION_CHARACTERS = 100
 #: Share of the picture's height given to the colour bar below the section.
 BAR_SHARE = 0.13
 #: Where the window goes inside the upper part (fractions: left, right, bottom, top); the top
