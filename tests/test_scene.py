@@ -169,7 +169,7 @@ def test_an_impossible_indentation_stops_clearly_and_keeps_the_results(tmp_path)
     with pytest.raises(ConvergenceError) as error:
         run_scene(scene, tmp_path, progress=False, comm=MPI.COMM_SELF)
     message = str(error.value)
-    assert re.search(r"failed \d times", message) and "Results up to t =" in message
+    assert re.search(r"failed (once|\d+ times)", message) and "Results up to t =" in message
     assert "near x = (" in message  # where: an inverted element or the largest residual
     saved = float(message.split("Results up to t = ")[1].split(" s")[0])
     h = read_csv(tmp_path / "history.csv")
