@@ -153,7 +153,8 @@ def _add_sweep(subparsers) -> None:
 def _add_study(subparsers) -> None:
     p = subparsers.add_parser(
         "study",
-        help="studies: model fidelity per scene, numerical stability where methods fail",
+        help="studies: accuracy (error against cost), fidelity (which physics a scene needs), "
+        "stability (where methods fail), acuity (gratings and gaps: SA1 thresholds)",
         description="accuracy: the scene over mesh sizes, element families and time steps, "
         "errors against a Richardson estimate, the Pareto front of error against wall time "
         "(DIR/accuracy.csv, .md, .png). "
@@ -279,9 +280,28 @@ def _run_or_check(args) -> int:
         if args.tol is not None and not 0 < args.tol < 1:
             raise InputError(f"--tol {args.tol}", "must be a relative error in (0, 1).",
                              "give e.g. --tol 0.01 for 1 %.")
-        return _print_check(args, _scene_overrides(args), args.spacing)
+        overrides = _scene_overrides(args)
+        _check_run_keys(args, overrides)
+        return _print_check(args, overrides, args.spacing)
     _need_out(args)
     return _run_scene(args)
+
+
+def _check_run_keys(args, overrides) -> None:
+    """--check of a run whose route compares key outputs (the adaptive loop, --fidelity auto):
+    the scene must write what they read, as the run itself checks before its first step."""
+    from .keys import check_scene
+    from .routes import route_of
+    from .scene import load_scene
+
+    scene = load_scene(args.scene, overrides, spacing=args.spacing)
+    auto = args.fidelity == "auto"
+    if auto and args.fidelity_table is None:  # the ladder is run first: a fidelity study
+        check_scene(scene, f"{scene.name}: --fidelity auto")
+    # with --fidelity auto, --tol is the model's tolerance; the mesh follows [accuracy] tol
+    if route_of(scene, tol=None if auto else args.tol, max_levels=args.max_levels,
+                frequencies=args.frequencies, state=args.state) == "adaptive":
+        check_scene(scene, f"{scene.name}: the adaptive loop (--tol)")
 
 
 def _need_out(args) -> None:
@@ -299,6 +319,10 @@ def _sweep_or_check(args) -> int:
         _need_out(args)
         return _run_sweep(args)
     overrides, spacings = _scene_overrides(args), args.spacings or [None]
+    if args.param:  # the sweep's table is the key outputs: refused before the first run
+        from .keys import check_scene
+
+        check_scene(load_scene(args.scene, overrides), f"sweep {args.scene} --param {args.param}")
     if args.param and args.values:
         for text in args.values:
             load_scene(args.scene, [*overrides, Override(f"{args.param}={text}",

@@ -24,10 +24,14 @@ class InputError(FingertipError, ValueError):
         What is wrong with the value.
     fix : str or None, optional
         What to do instead; None when the problem says it.
+    also : tuple of str, optional
+        Other scene keys the problem is a relation with (``("protocol.end_time",)`` for output
+        times past the end): a scene's error names the source of whichever was set last.
     """
 
-    def __init__(self, where: str, problem: str, fix: str | None = None):
-        self.where, self.problem, self.fix = where, problem, fix
+    def __init__(self, where: str, problem: str, fix: str | None = None,
+                 also: tuple[str, ...] = ()):
+        self.where, self.problem, self.fix, self.also = where, problem, fix, tuple(also)
         message = f"{where}: {problem}"
         if fix:
             message += f" Fix: {fix}"

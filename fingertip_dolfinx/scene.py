@@ -274,7 +274,9 @@ class Scene:
         end, o = self.history.end_time, self.outputs
         if any(t <= 0 or t > end + 1e-12 for t in o.times):
             raise InputError(f"{self.name}: output.times",
-                             f"{o.times} must lie in (0, end_time = {end}].")
+                             f"{o.times} must lie in (0, end_time = {end}].",
+                             "give output times within the run, or a later end_time.",
+                             also=("protocol.end_time",))  # the end may be what was changed
         if not 0 < o.profile_half_width < self.section.outer.a:
             raise InputError(f"{self.name}: output.profile_half_width",
                              f"{o.profile_half_width} mm must lie in (0, {self.section.outer.a}) "
@@ -381,13 +383,16 @@ def check_scan_coverage(indenter: Indenter, history, section, where: str) -> Non
     near, far = centre + (max(s) - last) * cos, centre + (min(s) + last) * cos
     if near > lo or far < hi:
         coordinate = "z" if indenter.axis == "x" else "x"
+        covered = (f"covers {coordinate} = {near:.3g} to {far:.3g} mm throughout (its outermost "
+                   "ridges' centres at the scan's two ends)" if near <= far else
+                   f"covers no {coordinate} throughout: the scan ({max(s) - min(s):g} mm) is "
+                   f"longer than the span of its outermost ridges' centres ({2 * last:g} mm)")
         raise InputError(
-            where, f"over its scan the grating covers {coordinate} = {near:.3g} to {far:.3g} "
-            "mm throughout (its outermost ridges' centres at the scan's two ends), but the "
-            f"pulp it presses {history.deepest:g} mm reaches {coordinate} = {lo:.3g} to "
-            f"{hi:.3g} mm: the grating's end would pass through the contact.",
+            where, f"over its scan the grating {covered}, but the pulp it presses "
+            f"{history.deepest:g} mm reaches {coordinate} = {lo:.3g} to {hi:.3g} mm: the "
+            "grating's end would pass through the contact.",
             f"add ridges (each adds {indenter.period:g} mm), or move centre_{coordinate} or "
-            "shorten the scan.")
+            "shorten the scan.", also=("protocol.tangential",))  # the path as much as the grating
 
 
 def _numerical(text: str) -> bool:
@@ -658,10 +663,25 @@ class _Blame:
             rest = f"{table}.{rest}"
         elif table is not None:
             rest = table
-        source = self._source(table, words)
+        source = self._latest(self._source(table, words), *(
+            self._source(path.split(".")[0], path.split(".")[1:])
+            for path in error.also))  # other keys the error names
+        kind = self.sources.get((table, "kind")) if "unknown key" in error.problem else None
+        if kind is not None and (source is None or self.order[kind] > self.order[source]):
+            # keys the table's new kind does not take: the change of kind is at fault (a
+            # `--set protocol.kind=...` keeps the file's ramp-hold keys), not the file
+            return InputError(f"{kind}: {rest}", error.problem,
+                              f"{error.fix.removesuffix(' (check the spelling).')}; a new kind "
+                              f"keeps the scene's other {table} keys: give the {table} table "
+                              "whole, e.g. --set '" + table + "={kind = ..., ...}'.")
         if source is None:
             return error
         return InputError(f"{source}: {rest}", error.problem, error.fix)
+
+    def _latest(self, *sources: str | None) -> str | None:
+        """The latest-applied of `sources` (a --set over a --config over the file)."""
+        given = [s for s in sources if s is not None]
+        return max(given, key=self.order.__getitem__) if given else None
 
     def _key_part(self, where: str) -> str:
         """`where` without the file or scene name it starts with."""

@@ -59,6 +59,14 @@ def test_malformed_number_and_help(capsys):
         assert option in help_text
 
 
+def test_the_top_level_help_names_every_study(capsys):
+    """`fingertip --help` lists what `study` runs: every kind it takes (it named two of four)."""
+    assert main(["--help"]) == 0
+    out = capsys.readouterr().out
+    study = out[out.index("    study"):out.index("options:")]  # its wrapped help lines
+    assert all(kind in study for kind in ("accuracy", "fidelity", "stability", "acuity"))
+
+
 def test_command_line_error_has_no_traceback(tmp_path):
     bad = tmp_path / "finger.toml"
     bad.write_text("[nail]\nhalf_angle = 120.0\n")
@@ -121,6 +129,21 @@ def test_sweep_spots_without_spacings_is_refused(tmp_path, capsys):
                  "--out", str(tmp_path)]) == 2
     assert "sweep --spots" in capsys.readouterr().err
 
+
+@pytest.mark.parametrize("command", [
+    ["sweep", "1pt", "--param", "materials.bone.E", "--factors", "1", "2"],
+    ["run", "1pt", "--tol", "0.05"],
+    ["run", "1pt", "--fidelity", "auto"],
+])
+def test_check_refuses_what_the_key_outputs_cannot_read(command, capsys):
+    """--check of a command that compares key outputs (a parameter sweep, the adaptive loop,
+    the fidelity ladder) refuses a scene they cannot read, as the command itself does before
+    its first run: a passed check must not be followed by a refusal. Before, --check passed."""
+    assert main([*command, "--set", "protocol.end_time=5", "--check"]) == 2
+    err = capsys.readouterr().err
+    assert "the key deflections are read at the end of the run (t = 5 s)" in err, err
+    # the same scene as one plain run reads no key output: its check passes
+    assert main(["run", "1pt", "--set", "protocol.end_time=5", "--check"]) == 0
 
 
 #: Allocate, fill and free a block of 256 MiB twice with C's malloc (as MUMPS's Fortran does;

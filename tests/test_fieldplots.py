@@ -438,3 +438,79 @@ def test_curves_of_many_output_times_keep_distinct_colours(times, tmp_path, monk
         assert len(colours) == times
         assert (fig.axes[0].get_legend() is not None) == (times <= 8)
         assert len(fig.axes) == (1 if times <= 8 else 2)  # the colour bar of the time
+
+
+def test_a_title_draws_square_brackets_as_brackets():
+    """A changed scene's title quotes its overrides ("indenters=[cylinder r=5]"); VTK's own
+    "arial" drew "[" as "(", so the picture named another value than the one given. In the
+    pictures' font (fieldplots._text) a "[" starts with its horizontal stub: its top rows of
+    ink are at least twice as wide as a "("'s (measured: 16 px against 7; VTK's arial: 4, 4)."""
+    import pyvista as pv
+
+    from fingertip_dolfinx.plotting.fieldplots import _text
+
+    def top_width(glyph):
+        plotter = pv.Plotter(off_screen=True, window_size=[120, 120])
+        plotter.set_background("white")
+        _text(plotter, glyph, position=(20, 20), font_size=40, color="black")
+        ink = np.asarray(plotter.screenshot(return_img=True), dtype=float).mean(-1) < 128
+        plotter.close()
+        first = np.flatnonzero(ink.any(1))[0]
+        return int(ink[first:first + 2].any(0).sum())  # the glyph's top two rows of ink
+
+    assert top_width("[") >= 2 * top_width("(")
+
+
+@pytest.mark.parametrize("extremes", [1, 2])
+def test_the_colour_bar_caption_fits_the_picture(extremes):
+    """The caption names the label and each extreme beyond the bar with its place; with both
+    ends saturated it is ~130 characters, which must stay inside the picture's width."""
+    import pyvista as pv
+
+    from fingertip_dolfinx.plotting.fieldplots import _text, caption_size
+
+    notes = ["max 7.34 kPa at (-0.02, -6.00) mm", "min -12.3 kPa at (-10.25, -16.50) mm"]
+    caption = ("strain energy density (Pa); colours saturate beyond the bar: "
+               + ", ".join(notes[:extremes]))
+    plotter = pv.Plotter(off_screen=True, window_size=list(WINDOW_SIZE))
+    plotter.set_background("white")
+    text = _text(plotter, caption, position=(0.52, 0.08), viewport=True,
+                 font_size=caption_size(caption), color="black")
+    text.GetTextProperty().SetJustificationToCentered()
+    ink = np.asarray(plotter.screenshot(return_img=True), dtype=float).mean(-1) < 128
+    plotter.close()
+    columns = np.flatnonzero(ink.any(0))
+    assert columns[0] > 5 and columns[-1] < WINDOW_SIZE[0] - 5, (columns[0], columns[-1])
+
+
+def test_the_sweep_figure_shows_small_values_in_smaller_units(tmp_path, monkeypatch):
+    """sweep.png states forces below 0.1 N/mm in mN/mm and an SED below 0.1 MPa in kPa, as the
+    runs' own figures do (docs/guide/figures.md), with the values scaled to match; before, its
+    panels read N/mm and MPa with a x10^-3 offset above the axis."""
+    from matplotlib.figure import Figure
+
+    from fingertip_dolfinx.keys import KEY_OUTPUTS
+    from fingertip_dolfinx.studies.parameters import _plot
+
+    drawn, save = [], Figure.savefig
+    monkeypatch.setattr(Figure, "savefig", lambda fig, *a, **k: (drawn.append(fig),
+                                                                   save(fig, *a, **k)))
+    rows = []
+    for i, k0 in enumerate((1e-3, 1.0)):
+        (tmp_path / f"k0={k0:g}").mkdir()
+        (tmp_path / f"k0={k0:g}" / "history.csv").write_text(
+            f"time_s,force_N_per_mm\n0.5,0.7e-3\n1.0,{1.44e-3 - 1e-5 * i}\n")
+        row = {"label": f"k0={k0:g}", "value": k0}
+        for key in KEY_OUTPUTS:
+            row[key.column] = {"force": 1.44e-3, "sed": 2.2e-4}.get(key.quantity, 0.5) - 1e-6 * i
+            row[f"{key.column}_t_s"] = 1.0
+        rows.append(row)
+    _plot(tmp_path, {"scene": "1pt", "key": "materials.subcutaneous.permeability.k0",
+                     "factors": [], "rows": rows})
+    axes = drawn[-1].axes
+    assert axes[0].get_ylabel() == "force (mN/mm)"
+    assert max(line.get_ydata().max() for line in axes[0].lines) == pytest.approx(1.44)
+    titles = {ax.get_title().split("\n")[0] for ax in axes[1:8]}
+    assert {"force (mN/mm)", "SED (kPa)", "deflection (mm)"} <= titles, titles
+    sed = next(ax for ax in axes[1:8] if ax.get_title().startswith("SED"))
+    assert sed.collections[0].get_offsets()[:, 1].max() == pytest.approx(0.22)

@@ -182,3 +182,12 @@ def test_a_failed_attempt_after_one_that_closed_the_pores_is_cut_not_a_crash():
                  closed_iterates=2)
     assert TimeStepper._compaction(stepper, SimpleNamespace(states=[]), step) is None
     assert step.closed_iterates == 2 and "Newton did not converge" in step.why
+
+
+@pytest.mark.parametrize("cuts, said", [(1, "failed once, the last"), (3, "failed 3 times")])
+def test_a_failed_step_says_how_often_in_words(cuts, said):
+    """The stop after the step's attempts names their number ('failed 1 times' before)."""
+    from fingertip_dolfinx.stepping.diagnosis import cuts_error
+
+    text = str(cuts_error(0.81, 0.8100125, (0.81, 0.8100125), cuts, "Newton did not converge", 0))
+    assert said in text and "1 times" not in text

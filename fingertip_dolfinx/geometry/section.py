@@ -205,22 +205,23 @@ class MeshOptions:
         object.__setattr__(self, "tips", tuple(float(x) for x in self.tips))
         self._check_spots()
         if self.tips and self.tip_size > self.min_size:
-            raise InputError("mesh.tip_size", f"{self.tip_size} mm is coarser than mesh.min_size "
-                             f"= {self.min_size} mm: tip refinement must be finer.",
-                             "make tip_size <= min_size (or leave tips empty).")
+            raise _related(InputError(
+                "mesh.tip_size", f"{self.tip_size} mm is coarser than mesh.min_size = "
+                f"{self.min_size} mm: tip refinement must be finer.",
+                "make tip_size <= min_size (or leave tips empty)."), "min_size")
         if self.max_size < self.min_size:
-            raise InputError(
+            raise _related(InputError(
                 "mesh.max_size",
                 f"{self.max_size} mm is smaller than mesh.min_size = {self.min_size} mm.",
                 "make max_size >= min_size.",
-            )
+            ), "min_size")
         if self.bone_size < self.max_size:
-            raise InputError(
+            raise _related(InputError(
                 "mesh.bone_size",
                 f"{self.bone_size} mm is smaller than mesh.max_size = {self.max_size} mm: the "
                 "bone is nearly rigid and is meshed coarser than the soft tissue.",
                 "make bone_size >= max_size.",
-            )
+            ), "max_size")
         if self.spots and self.spot_size > self.min_size:
             raise InputError("mesh.spot_size", f"{self.spot_size} mm is coarser than "
                              f"mesh.min_size = {self.min_size} mm: a spot must be finer.",
@@ -508,7 +509,7 @@ def load_section(source: str | Path = "male-index", overrides: dict | None = Non
     try:
         return section_from_dict(data, name=path.stem)
     except InputError as e:
-        raise InputError(f"{path}, key {e.where}", e.problem, e.fix) from None
+        raise InputError(f"{path}, key {e.where}", e.problem, e.fix, e.also) from None
 
 
 def section_from_dict(data: dict, name: str) -> Section:
@@ -541,3 +542,11 @@ def section_from_dict(data: dict, name: str) -> Section:
         name=name,
         **parts[""],
     )
+
+
+def _related(error: InputError, other: str) -> InputError:
+    """`error` about a relation between two mesh sizes, marked as naming `other` too: a scene's
+    error then names the override of either that came last (scene._Blame), not the file that
+    gave the one a --set did not change."""
+    error.also = (f"section.mesh.{other}",)
+    return error

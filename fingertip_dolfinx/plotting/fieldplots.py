@@ -36,6 +36,7 @@ import numpy as np
 import pyvista as pv
 from dolfinx import fem, plot
 from dolfinx import mesh as dmesh
+from matplotlib import font_manager
 from matplotlib.ticker import MaxNLocator
 
 from ..geometry.indenters import Indenter
@@ -53,6 +54,12 @@ except ImportError:  # an older VTK without vtkLogger: the warning stays, harmle
 
 #: Picture size in pixels (width, height).
 WINDOW_SIZE = (1600, 1200)
+#: The font of the pictures' titles and captions: matplotlib's DejaVu Sans, as on the curves.
+#: VTK's own "arial" draws square brackets as round ones, so a title "indenters=[cylinder
+#: r=5]" read "indenters=(cylinder r=5)", not the override given.
+TEXT_FONT = font_manager.findfont("DejaVu Sans")
+#: The longest caption drawn at 14 points (characters).
+CAPTION_CHARACTERS = 100
 #: Share of the picture's height given to the colour bar below the section.
 BAR_SHARE = 0.13
 #: Where the window goes inside the upper part (fractions: left, right, bottom, top); the top
@@ -441,7 +448,7 @@ def _render(section_grid, field_grid, scale: ColourScale, indenters, window, pat
         draw.add(_outline(section_grid), color="black", line_width=1.5)
         notes = _mark_extremes(plotter, draw, scale.extremes, original)
         if title:
-            plotter.add_text(title, position="upper_edge", font_size=14, color="black")
+            _text(plotter, title, position="upper_edge", font_size=14, color="black")
         aspect = WINDOW_SIZE[0] / (WINDOW_SIZE[1] * (1 - BAR_SHARE))
         half_w, half_h = _frame(plotter.renderer, window, aspect,
                                 TITLED_TOP if title else CONTENT_BOX[3])
@@ -486,6 +493,18 @@ def _mark_extremes(plotter, draw, extremes: list[Extreme], label: str) -> list:
     return notes
 
 
+def caption_size(caption: str) -> int:
+    """The colour bar's caption's font size: 14 points, smaller for a caption that would
+    not fit across the picture (the label and both extremes: ~130 characters; DejaVu Sans at
+    14 points takes ~14 px a character of the 1600 px)."""
+    return max(9, min(14, int(14 * CAPTION_CHARACTERS / max(len(caption), 1))))
+
+
+def _text(plotter, text: str, **options):
+    """`plotter.add_text` in TEXT_FONT (brackets drawn as brackets); returns the actor."""
+    return plotter.add_text(text, font_file=TEXT_FONT, **options)
+
+
 def _number(value: float) -> str:
     """Three significant digits (an exponent only below 1e-3 or from 1e4)."""
     return f"{value:.3g}" if value == 0 or 1e-3 <= abs(value) < 1e4 else f"{value:.2e}"
@@ -526,8 +545,8 @@ def _scale_bar(plotter, half_w: float, half_h: float):
                      lighting=False)
     plotter.renderer.reset_camera_clipping_range()
     centre = 0.025 + 0.5 * length / width
-    text = plotter.add_text(f"{length:g} mm", position=(centre, 0.5), viewport=True,
-                            font_size=12, color="black")
+    text = _text(plotter, f"{length:g} mm", position=(centre, 0.5), viewport=True,
+                 font_size=12, color="black")
     text.GetTextProperty().SetJustificationToCentered()
 
 
@@ -573,8 +592,8 @@ def _colour_bar(plotter, mapper, label: str, shown, extremes: list[Extreme], not
     bar.SetBarRatio(0.45)
     caption = label if not notes else (
         f"{label}; colours saturate beyond the bar: " + ", ".join(notes))
-    text = plotter.add_text(caption, position=(0.52, 0.08), viewport=True, font_size=14,
-                            color="black")
+    text = _text(plotter, caption, position=(0.52, 0.08), viewport=True,
+                 font_size=caption_size(caption), color="black")
     text.GetTextProperty().SetJustificationToCentered()
 
 
@@ -608,14 +627,14 @@ def plot_tagged_mesh3d(fm, path: Path, title: str | None = None) -> Path | None:
     present = {n for n, t in FACET_TAGS_3D.items() if t in set(facet_values[exposed])}
     _swatch_legend(plotter, [(n, colours[n]) for n in FACET_TAGS_3D if n in present],
                    size=(0.22, 0.22))
-    plotter.add_text(title or "3D fingertip: boundary tags", font_size=11, position="upper_right")
+    _text(plotter, title or "3D fingertip: boundary tags", font_size=11, position="upper_right")
     plotter.subplot(0, 1)
     plotter.add_mesh(section, scalars="colour", rgb=True, show_edges=True, line_width=0.3,
                      lighting=False)
     plotter.view_vector((-1.0, 0.0, 0.0), viewup=(0, 1, 0))
     _swatch_legend(plotter, [(n, REGION_COLOURS[n]) for n in CELL_TAGS], size=(0.18, 0.16))
-    plotter.add_text("regions, cut at x = 0 (z: proximal cut -> tip)", font_size=11,
-                     position="upper_right")
+    _text(plotter, "regions, cut at x = 0 (z: proximal cut -> tip)", font_size=11,
+          position="upper_right")
     plotter.screenshot(str(path))
     plotter.close()
     return Path(path)

@@ -126,7 +126,8 @@ def cuts_error(t: float, t_new: float, loads: tuple[float, float], cuts: int, wh
         f"load {load_a} -> {load_b}"
     return ConvergenceError(
         f"the step from t = {a} s to t = {b} s ({loads}) "
-        f"failed {cuts} times, the last with Δt = {t_new - t:.3g} s: {why}"
+        f"failed {'once' if cuts == 1 else f'{cuts} times'}, the last with Δt = "
+        f"{t_new - t:.3g} s: {why}"
         f"{overshoot_note(closed_iterates)}. "
         f"Results up to t = {a} s are saved. Fix: lower the load or its rate, "
         f"refine the mesh where it fails, or allow smaller steps (dt_min, max_cuts).{note}")

@@ -23,6 +23,7 @@ from mpi4py import MPI
 from ..errors import InputError, on_root
 from ..keys import KEY_OUTPUTS, KEYS, TIME_COLUMNS, check_scene, key_outputs
 from ..outputs import read_csv, write_json
+from ..plotting.figures import display_unit
 
 
 def parameter_sweep(scene_name: str, key: str, out: Path, *, values: Sequence | None = None,
@@ -160,11 +161,14 @@ def _plot_histories(ax, out: Path, rows: list[dict], colours) -> None:
     coincide stay visible; a symlog time axis (linear up to the force peak) for long holds."""
     from matplotlib.ticker import FuncFormatter
 
+    histories = [read_csv(out / row["label"] / "history.csv") for row in rows]
+    # in mN/mm below 0.1 N/mm, as the runs' own force figures (figures.display_unit)
+    factor, unit_label = display_unit("force (N/mm)", max(
+        float(np.max(np.abs(h["force_N_per_mm"]))) for h in histories))
     end = 0.0
-    for i, (row, colour) in enumerate(zip(rows, colours)):
-        h = read_csv(out / row["label"] / "history.csv")
+    for i, (row, h, colour) in enumerate(zip(rows, histories, colours)):
         width = 1.0 + 2.5 * (len(rows) - 1 - i) / max(len(rows) - 1, 1)
-        ax.plot(h["time_s"], h["force_N_per_mm"], "-", color=colour, lw=width,
+        ax.plot(h["time_s"], factor * h["force_N_per_mm"], "-", color=colour, lw=width,
                 solid_capstyle="butt", label=row["label"])
         end = max(end, float(h["time_s"][-1]))
     # The force peaks at the end of the ramp: linear up to there, logarithmic over a hold
@@ -175,7 +179,7 @@ def _plot_histories(ax, out: Path, rows: list[dict], colours) -> None:
         ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
     ax.set_xlim(0, end)
     ax.set_xlabel("time (s)", fontsize=8)
-    ax.set_ylabel("force (N/mm)", fontsize=8)
+    ax.set_ylabel(unit_label, fontsize=8)
     ax.set_title("force against time\n(thicker: earlier runs, seen where curves coincide)",
                  fontsize=8)
     _sci(ax)
@@ -187,7 +191,10 @@ def _plot_histories(ax, out: Path, rows: list[dict], colours) -> None:
 def _plot_key(ax, key, x, rows: list[dict], colours, log: bool, ticks) -> None:
     """One key output against the parameter, each point in its run's colour; the time it was
     read at in the title (the peak's time, for a max over the run)."""
+    quantity, where = key.label.split("\n", 1)
     y = np.array([r[key.column] for r in rows], dtype=float)
+    factor, quantity = display_unit(quantity, float(np.nanmax(np.abs(y))))  # 0.22 kPa, 1.44 mN/mm
+    y = factor * y
     order = np.argsort(x)
     ax.plot(x[order], y[order], "-", color="0.6", lw=1.0, zorder=1)
     ax.scatter(x, y, c=colours, s=36, edgecolors="k", linewidths=0.5, zorder=2)
@@ -202,7 +209,7 @@ def _plot_key(ax, key, x, rows: list[dict], colours, log: bool, ticks) -> None:
             ax.annotate(f"{ti:g} s", (xi, yi), fontsize=6, xytext=(4, 3),
                         textcoords="offset points")
     when = ", ".join(f"{t:g}" for t in times[:4]) + (", …" if len(times) > 4 else "")
-    ax.set_title(f"{key.label}\nread at t = {when} s", fontsize=8)
+    ax.set_title(f"{quantity}\n{where}\nread at t = {when} s", fontsize=8)
     _sci(ax)
     ax.grid(alpha=0.3)
 
