@@ -375,6 +375,25 @@ def test_a_long_scene_title_stays_inside_the_figure(draw, tmp_path, monkeypatch)
         assert 0 <= box.x0 and box.x1 <= fig.bbox.width, (text.get_text(), box)
 
 
+
+def test_the_3d_population_keeps_its_axis_labels_inside_the_figure(tmp_path):
+    """The whole pulp seen from the palm (x ±7.5 mm across, z 0–21 mm along), three classes:
+    at the figure's fixed 4.8 in height the equal-aspect panels pushed the x labels
+    ("x (mm), across the finger") off the bottom of the PNG. The picture now ends in a white
+    margin: no ink in its last rows."""
+    from fingertip_dolfinx.plotting.figures import plot_population_3d
+
+    rng = np.random.default_rng(0)
+    n = 300
+    classes = np.array(["SA1", "RA", "PC"])[rng.integers(0, 3, n)]
+    path = tmp_path / "population.png"
+    plot_population_3d({"x_mm": rng.uniform(-7.5, 7.5, n), "y_mm": np.full(n, -6.0),
+                        "z_mm": rng.uniform(0.0, 21.0, n), "mean_rate_per_s": rng.uniform(0, 20, n),
+                        "class": classes}, path, "probe-3d")
+    grey = np.asarray(Image.open(path).convert("L"))
+    inked = np.flatnonzero(grey.min(axis=1) < 128)
+    assert inked.max() < grey.shape[0] - 5, (inked.max(), grey.shape)
+
 @pytest.mark.parametrize("times", [3, 20])
 def test_curves_of_many_output_times_keep_distinct_colours(times, tmp_path, monkeypatch):
     """One curve per output time: named in a legend while there are few; with many (a scene's
