@@ -85,30 +85,23 @@ def run(scene: Scene | str | Path, out: str | Path, *,
     InputError for arguments that do not fit the route; `ConvergenceError` (files written up
     to the last good step); `RunInterrupted` on SIGINT/SIGTERM (its `route` set too).
     """
-    say = say or _printer(progress)
-    out = Path(out)
+    say, out = say or _printer(progress), Path(out)
     source, scene = scene, _scene_of(scene, overrides, spacing, fidelity)
-    given = {"resume": resume, "tol": tol, "max_levels": max_levels, "fidelity": fidelity}
-    # The route, and the options it refuses, from the scene as given, before anything is
-    # computed (the fidelity ladder of `fidelity="auto"` included); the model it picks changes
-    # the physics, not the route.
+    # The route and the options it refuses from the scene as given, before anything is
+    # computed (the ladder of fidelity="auto" too: its model changes the physics, not the route)
     kind = route_of(scene, tol=None if fidelity == "auto" else tol, max_levels=max_levels,
                     frequencies=frequencies, state=state)
-    _refuse_off_route(kind, given)
-    mesh_tol = tol
+    _refuse_off_route(kind, {"resume": resume, "tol": tol, "max_levels": max_levels,
+                             "fidelity": fidelity})
+    mesh_tol = None if fidelity == "auto" else tol  # auto: the mesh by [accuracy] tol
     if fidelity == "auto":
-        overrides = _as_list(overrides)
-        model_tol = AUTO_FIDELITY_TOL if tol is None else tol
-        overrides += auto_fidelity(source, out, overrides, model_tol, fidelity_table, progress,
-                                   say)
-        scene, mesh_tol = _load(source, overrides, spacing), None  # mesh: [accuracy] tol
+        scene = _with_picked_model(source, out, overrides, spacing, tol, fidelity_table,
+                                   progress, say)
     try:
-        if kind == "frequency":
-            result = _frequency(scene, out, frequencies, state, progress, comm)
-        elif kind == "adaptive":
-            result = _adaptive(scene, out, mesh_tol, max_levels, resume, progress, comm, say)
-        else:
-            result = _time(scene, out, resume, progress, comm, say)
+        result = (_frequency(scene, out, frequencies, state, progress, comm)
+                  if kind == "frequency" else
+                  _adaptive(scene, out, mesh_tol, max_levels, resume, progress, comm, say)
+                  if kind == "adaptive" else _time(scene, out, resume, progress, comm, say))
     except RunInterrupted as stop:
         stop.route = kind  # only a time run can be resumed
         raise
@@ -158,6 +151,16 @@ def _scene_of(scene, overrides, spacing, fidelity: str) -> Scene:
                              "give the scene's name or file (with overrides=) instead.")
         return scene
     return _load(scene, _as_list(overrides), spacing)
+
+
+def _with_picked_model(source, out: Path, overrides, spacing, tol, table, progress,
+                       say) -> Scene:
+    """The scene with the model `auto_fidelity` picks within `tol` (default
+    `AUTO_FIDELITY_TOL`)."""
+    overrides = _as_list(overrides)
+    model_tol = AUTO_FIDELITY_TOL if tol is None else tol
+    overrides += auto_fidelity(source, out, overrides, model_tol, table, progress, say)
+    return _load(source, overrides, spacing)
 
 
 def _load(source, overrides: list, spacing) -> Scene:
