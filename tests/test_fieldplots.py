@@ -417,3 +417,23 @@ def test_curves_of_many_output_times_keep_distinct_colours(times, tmp_path, monk
         assert len(colours) == times
         assert (fig.axes[0].get_legend() is not None) == (times <= 8)
         assert len(fig.axes) == (1 if times <= 8 else 2)  # the colour bar of the time
+
+
+def test_a_sweep_panel_shows_values_that_differ_in_their_sixth_digit_as_they_are():
+    """The permeability sweep's forces, 1.439380e-3 to 1.439374e-3 N/mm: the panel's axis read
+    "×10⁻⁹ + 1.4393×10⁻³" above ticks 74–80 (an offset), which reads as another number. The
+    ticks now carry the values themselves (×10⁻³ above them, no offset)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from fingertip_dolfinx.studies.parameters import _sci
+
+    fig = Figure()
+    ax = fig.subplots()
+    ax.plot([0.1, 1.0, 10.0], [1.43938046e-3, 1.43937985e-3, 1.43937377e-3])
+    _sci(ax)
+    FigureCanvasAgg(fig).draw()
+    offset = ax.yaxis.get_offset_text().get_text().replace("\N{MINUS SIGN}", "-")
+    assert "+" not in offset and "10^{-3}" in offset, offset
+    labels = [t.get_text() for t in ax.get_yticklabels() if t.get_text()]
+    assert labels and all("{1.4393" in label for label in labels), labels
