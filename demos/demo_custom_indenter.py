@@ -25,7 +25,7 @@
 #
 # ```bash
 # python demos/demo_custom_indenter.py           # 1pt-scene mesh, two cycles of 40 steps (~3 min)
-# python demos/demo_custom_indenter.py --coarse  # coarse mesh, one cycle, ~10 steps (~30 s)
+# python demos/demo_custom_indenter.py --coarse  # coarse mesh, one cycle, ~17 steps (~30 CPU s)
 # ```
 #
 # (`FINGERTIP_DEMO_COARSE=1` does the same as `--coarse`; the outputs go to

@@ -25,7 +25,7 @@
 #
 # ```bash
 # python demos/demo_line_load.py            # the scene's own mesh, 100 s  (about 1 min)
-# python demos/demo_line_load.py --coarse   # coarse mesh, 10 s: what CI runs (about 20 s)
+# python demos/demo_line_load.py --coarse   # coarse mesh, 10 s: what CI runs (~16 CPU s)
 # ```
 #
 # (`FINGERTIP_DEMO_COARSE=1` does the same as `--coarse`; the outputs go to

@@ -25,7 +25,8 @@
 #
 # ```bash
 # python demos/demo_permeability_sweep.py           # scene mesh, 6 permeabilities, 100 s (~10 min)
-# python demos/demo_permeability_sweep.py --coarse  # coarse mesh, 3 permeabilities, 10 s (~30 s)
+# python demos/demo_permeability_sweep.py --coarse  # coarse mesh, 3 permeabilities and the
+#                                                   # two bounds, 10 s (~40 CPU s)
 # ```
 #
 # (`FINGERTIP_DEMO_COARSE=1` does the same as `--coarse`; the outputs go to

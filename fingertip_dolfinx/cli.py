@@ -225,8 +225,10 @@ def _run_study(args) -> int:
                               coarse + _scene_overrides(args),
                               progress=not args.quiet)
     for r in rows:
-        _rank0_print(f"{r['model']:>18}: {r['wall_time_s']:6.1f} s, largest error "
-                     f"{100 * r['max_error']:6.2f} %")
+        # A rung that failed has no error (its max_error is inf): say so, as fidelity.md does.
+        verdict = ("failed (the reason: fidelity.md)" if r.get("failure") else
+                   f"largest error {100 * r['max_error']:6.2f} %")
+        _rank0_print(f"{r['model']:>18}: {r['wall_time_s']:6.1f} s, {verdict}")
     _rank0_print(f"fidelity table written to {args.out}/fidelity.md")
     return 0
 

@@ -85,20 +85,23 @@ def run(scene: Scene | str | Path, out: str | Path, *,
     InputError for arguments that do not fit the route; `ConvergenceError` (files written up
     to the last good step); `RunInterrupted` on SIGINT/SIGTERM (its `route` set too).
     """
-    say = say or _printer(progress)
-    out = Path(out)
-    scene, mesh_tol = _scene_of(scene, out, overrides, spacing, tol, fidelity, fidelity_table,
-                                progress, say)
-    kind = route_of(scene, tol=mesh_tol, max_levels=max_levels, frequencies=frequencies,
-                    state=state)
+    say, out = say or _printer(progress), Path(out)
+    source, scene = scene, _scene_of(scene, overrides, spacing, fidelity)
+    # The route and the options it refuses from the scene as given, before anything is
+    # computed (the ladder of fidelity="auto" too: its model changes the physics, not the route)
+    kind = route_of(scene, tol=None if fidelity == "auto" else tol, max_levels=max_levels,
+                    frequencies=frequencies, state=state)
+    _refuse_off_route(kind, {"resume": resume, "tol": tol, "max_levels": max_levels,
+                             "fidelity": fidelity})
+    mesh_tol = None if fidelity == "auto" else tol  # auto: the mesh by [accuracy] tol
+    if fidelity == "auto":
+        scene = _with_picked_model(source, out, overrides, spacing, tol, fidelity_table,
+                                   progress, say)
     try:
-        if kind == "frequency":
-            result = _frequency(scene, out, frequencies, state, resume, tol, fidelity,
-                                progress, comm)
-        elif kind == "adaptive":
-            result = _adaptive(scene, out, mesh_tol, max_levels, resume, progress, comm, say)
-        else:
-            result = _time(scene, out, resume, progress, comm, say)
+        result = (_frequency(scene, out, frequencies, state, progress, comm)
+                  if kind == "frequency" else
+                  _adaptive(scene, out, mesh_tol, max_levels, resume, progress, comm, say)
+                  if kind == "adaptive" else _time(scene, out, resume, progress, comm, say))
     except RunInterrupted as stop:
         stop.route = kind  # only a time run can be resumed
         raise
@@ -132,10 +135,9 @@ def route_of(scene: Scene, *, tol: float | None = None, max_levels: int | None =
     return "time"
 
 
-def _scene_of(scene, out: Path, overrides, spacing, tol, fidelity, table, progress, say):
-    """(the scene, the adaptive loop's tol): loaded from its source with the overrides and,
-    with fidelity "auto", the settings of the model picked (whose tolerance `tol` then is)."""
-    from .scene import Scene, load_scene
+def _scene_of(scene, overrides, spacing, fidelity: str) -> Scene:
+    """The scene as given: a `Scene`, or loaded from its name or file with the overrides."""
+    from .scene import Scene
 
     if fidelity not in ("scene", "auto"):
         raise InputError(f"fidelity {fidelity!r}", "is not a fidelity.", 'use "scene" or "auto".')
@@ -147,13 +149,37 @@ def _scene_of(scene, out: Path, overrides, spacing, tol, fidelity, table, progre
             raise InputError("--fidelity auto", "runs the scene file again with each model of "
                              "the ladder, and a Scene object has no file.",
                              "give the scene's name or file (with overrides=) instead.")
-        return scene, tol
+        return scene
+    return _load(scene, _as_list(overrides), spacing)
+
+
+def _with_picked_model(source, out: Path, overrides, spacing, tol, table, progress,
+                       say) -> Scene:
+    """The scene with the model `auto_fidelity` picks within `tol` (default
+    `AUTO_FIDELITY_TOL`)."""
     overrides = _as_list(overrides)
-    if fidelity == "auto":
-        model_tol = AUTO_FIDELITY_TOL if tol is None else tol
-        overrides += auto_fidelity(scene, out, overrides, model_tol, table, progress, say)
-        tol = None  # the mesh follows the scene's [accuracy] tol
-    return load_scene(scene, overrides, spacing=spacing), tol
+    model_tol = AUTO_FIDELITY_TOL if tol is None else tol
+    overrides += auto_fidelity(source, out, overrides, model_tol, table, progress, say)
+    return _load(source, overrides, spacing)
+
+
+def _load(source, overrides: list, spacing) -> Scene:
+    from .scene import load_scene
+
+    return load_scene(source, overrides, spacing=spacing)
+
+
+def _refuse_off_route(kind: str, given: Mapping) -> None:
+    """InputError for an option the route cannot use, named as the command line spells it
+    (the frequency route has no mesh loop, no model picking and no checkpoint to resume)."""
+    if kind != "frequency":
+        return
+    for flag, used in (("--resume", given["resume"]), ("--tol", given["tol"] is not None),
+                       ("--max-levels", given["max_levels"] is not None),
+                       ("--fidelity auto", given["fidelity"] == "auto")):
+        if used:
+            raise InputError(flag, "is not available on the frequency route.",
+                             f"drop {flag} (or --frequencies).")
 
 
 def _as_list(overrides) -> list:
@@ -237,19 +263,13 @@ def _adaptive(scene: Scene, out: Path, tol, max_levels, resume, progress, comm, 
     return Result(out)
 
 
-def _frequency(scene: Scene, out: Path, frequencies, state, resume, tol, fidelity, progress,
-               comm) -> FrequencyResult:
+def _frequency(scene: Scene, out: Path, frequencies, state, progress, comm) -> FrequencyResult:
     """The frequency route (frequency_response.py)."""
     from mpi4py import MPI
 
     from .frequency_response import run_frequency_response
     from .result import FrequencyResult
 
-    for flag, given in (("--resume", resume), ("--tol", tol is not None),
-                        ("--fidelity auto", fidelity == "auto")):
-        if given:
-            raise InputError(flag, "is not available on the frequency route.",
-                             f"drop {flag} (or --frequencies).")
     run_frequency_response(scene, out, frequencies=frequencies, state=state, progress=progress,
                            comm=comm or MPI.COMM_WORLD)
     return FrequencyResult(out)

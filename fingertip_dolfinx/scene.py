@@ -822,7 +822,8 @@ def _options(cls, data: Mapping, where: str):
     except InputError as error:
         raise InputError(f"{where}: {error.where}", error.problem, error.fix) from None
     except (TypeError, ValueError) as error:
-        raise InputError(where, str(error), "check the values.") from None
+        problem = str(error).rstrip(".") + "."  # a sentence, before the "Fix:"
+        raise InputError(where, problem, "check the values.") from None
 
 
 # --- the record -----------------------------------------------------------------------------

@@ -103,6 +103,28 @@ def test_grading_limits_the_growth_between_neighbours():
     assert h == pytest.approx([0.7, 0.4, 0.1, 0.4, 0.7])
 
 
+
+def test_a_peak_zone_smaller_than_its_cells_is_refined_through_the_nearest_cell():
+    """`fingertip run 1pt --tol 0.05` on a 1.5 mm mesh: the 0.3 mm discs of a peak held no
+    cell centroid, and planning the next level stopped on an empty average
+    (ZeroDivisionError). The cell nearest to the disc stands for it: it is refined by the
+    first level's ratio, and that is the zone's planned and measured ratio."""
+    n = 6
+    centroids = np.column_stack([1.5 * np.arange(n), np.zeros(n)])
+    peak = ad.Zone(np.array([[4.0, 0.3]]), np.array([0.3]))  # 0.5 mm from the nearest centroid
+    zones = {"load": ad.Zone(np.array([[3.75, 0.0]]), np.array([10.0])), "e_max": peak,
+             "sed_MPa": peak}
+    assert peak.distance(centroids).min() > 0
+    data = {"h": np.full(n, 1.5), "density": np.ones(n), "area": np.full(n, 1.0),
+            "centroids": centroids, "pairs": np.column_stack([np.arange(n - 1), np.arange(1, n)]),
+            "zones": zones}
+    plan = ad._plan_next(0, [{"cells": n, "dofs": 10 * n}], [data], ad.AdaptOptions(tol=0.05),
+                         floor=0.01)
+    assert plan["planned_ratios"]["e_max"] == pytest.approx(2.0)
+    assert np.flatnonzero(peak.cells(centroids)).tolist() == [3]
+    finer = {"centroids": centroids, "h": plan["sizes"], "area": data["area"]}
+    assert ad.measured_ratio(data, finer, peak) == pytest.approx(2.0)
+
 def test_size_map_answers_the_nearest_point_and_survives_a_file(tmp_path):
     points = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
     sm = SizeMap(points, [0.1, 0.2, 0.3])

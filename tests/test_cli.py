@@ -186,3 +186,27 @@ def test_the_command_reuses_freed_memory_without_page_faults():
 
     assert faults("default") > PAGES // 2  # most pages fault again
     assert faults("keep") < PAGES // 100   # reused: no new pages
+
+
+def test_study_fidelity_says_failed_for_a_rung_that_failed(monkeypatch, tmp_path, capsys):
+    """A rung whose run failed (the small-strain continuum under the line load's 25 µm tip) was
+    printed as "largest error inf %"; the console now says it failed, as fidelity.md does, and
+    so does `--fidelity auto`'s sentence about the cheaper rungs."""
+    import math
+
+    from fingertip_dolfinx.keys import KEYS
+    from fingertip_dolfinx.studies import fidelity
+
+    def row(model, error, failure=""):
+        return {"model": model, "wall_time_s": 1.0, "max_error": error, "failure": failure,
+                **{f"error_{k}": error for k in KEYS}}
+
+    rows = [row("continuum", math.inf, "inverted elements"), row("hyperfoam", 0.3),
+            row("+ skin QLV", 0.2), row("+ undrained", 1e-3), row("full", 0.0)]
+    monkeypatch.setattr(fidelity, "run_fidelity_study", lambda *a, **k: rows)
+    assert main(["study", "fidelity", "--quiet", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().err
+    assert "continuum:    1.0 s, failed" in out and "inf" not in out
+    assert "largest error  30.00 %" in out
+    model, why = fidelity.pick(rows, 0.01)
+    assert model == "+ undrained" and "continuum (failed)" in why and "inf" not in why

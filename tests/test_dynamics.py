@@ -246,6 +246,19 @@ def test_inertia_needs_the_dynamic_scheme():
         load_scene("vibrotactile", ["steps.scheme=bdf2"])
 
 
+
+def test_error_control_of_a_dynamic_scene_is_refused_with_its_fix():
+    """The message was the problem with the fix inside it and a generic "Fix: check the
+    values." after it, without a full stop between them."""
+    with pytest.raises(InputError) as refused:
+        load_scene("vibrotactile", ['steps.control="error"'])
+    assert str(refused.value).endswith(
+        "control: 'error' has no error estimate for the generalized-alpha scheme. "
+        "Fix: use control = 'iterations' (steps_per_period sets the accuracy).")
+    with pytest.raises(InputError) as refused:  # a ValueError of the options: one sentence
+        load_scene("vibrotactile", ["steps.rho_inf=1.5"])
+    assert "got 1.5. Fix: check the values." in str(refused.value)
+
 def test_vibrotactile_scene_is_dynamic():
     scene = load_scene("vibrotactile")
     assert scene.model.inertia and scene.steps.scheme == "generalized-alpha"

@@ -415,6 +415,25 @@ def test_a_long_scene_title_stays_inside_the_figure(draw, tmp_path, monkeypatch)
         assert 0 <= box.x0 and box.x1 <= fig.bbox.width, (text.get_text(), box)
 
 
+
+def test_the_3d_population_keeps_its_axis_labels_inside_the_figure(tmp_path):
+    """The whole pulp seen from the palm (x ±7.5 mm across, z 0–21 mm along), three classes:
+    at the figure's fixed 4.8 in height the equal-aspect panels pushed the x labels
+    ("x (mm), across the finger") off the bottom of the PNG. The picture now ends in a white
+    margin: no ink in its last rows."""
+    from fingertip_dolfinx.plotting.figures import plot_population_3d
+
+    rng = np.random.default_rng(0)
+    n = 300
+    classes = np.array(["SA1", "RA", "PC"])[rng.integers(0, 3, n)]
+    path = tmp_path / "population.png"
+    plot_population_3d({"x_mm": rng.uniform(-7.5, 7.5, n), "y_mm": np.full(n, -6.0),
+                        "z_mm": rng.uniform(0.0, 21.0, n), "mean_rate_per_s": rng.uniform(0, 20, n),
+                        "class": classes}, path, "probe-3d")
+    grey = np.asarray(Image.open(path).convert("L"))
+    inked = np.flatnonzero(grey.min(axis=1) < 128)
+    assert inked.max() < grey.shape[0] - 5, (inked.max(), grey.shape)
+
 @pytest.mark.parametrize("times", [3, 20])
 def test_curves_of_many_output_times_keep_distinct_colours(times, tmp_path, monkeypatch):
     """One curve per output time: named in a legend while there are few; with many (a scene's
@@ -514,3 +533,23 @@ def test_the_sweep_figure_shows_small_values_in_smaller_units(tmp_path, monkeypa
     assert {"force (mN/mm)", "SED (kPa)", "deflection (mm)"} <= titles, titles
     sed = next(ax for ax in axes[1:8] if ax.get_title().startswith("SED"))
     assert sed.collections[0].get_offsets()[:, 1].max() == pytest.approx(0.22)
+
+
+def test_a_sweep_panel_shows_values_that_differ_in_their_sixth_digit_as_they_are():
+    """The permeability sweep's forces, 1.439380e-3 to 1.439374e-3 N/mm: the panel's axis read
+    "×10⁻⁹ + 1.4393×10⁻³" above ticks 74–80 (an offset), which reads as another number. The
+    ticks now carry the values themselves (×10⁻³ above them, no offset)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from fingertip_dolfinx.studies.parameters import _sci
+
+    fig = Figure()
+    ax = fig.subplots()
+    ax.plot([0.1, 1.0, 10.0], [1.43938046e-3, 1.43937985e-3, 1.43937377e-3])
+    _sci(ax)
+    FigureCanvasAgg(fig).draw()
+    offset = ax.yaxis.get_offset_text().get_text().replace("\N{MINUS SIGN}", "-")
+    assert "+" not in offset and "10^{-3}" in offset, offset
+    labels = [t.get_text() for t in ax.get_yticklabels() if t.get_text()]
+    assert labels and all("{1.4393" in label for label in labels), labels

@@ -130,10 +130,18 @@ def test_fidelity_auto_needs_the_scene_file(tmp_path):
         ft.run(ft.load_scene("1pt"), tmp_path, fidelity="auto")
 
 
-def test_the_frequency_route_refuses_what_it_cannot_do(recorders, tmp_path):
-    for kwargs, flag in (({"resume": True}, "--resume"), ({"tol": 0.01}, "--tol")):
-        with pytest.raises(InputError, match=f"{flag}: is not available on the frequency"):
-            ft.run("1pt", tmp_path, overrides=HARMONIC, progress=False, **kwargs)
+def test_the_frequency_route_refuses_what_it_cannot_do(recorders, monkeypatch, tmp_path):
+    """Refused before anything is computed: `max_levels` was silently dropped, and
+    `fidelity="auto"` ran its ladder of six runs before being refused."""
+    from fingertip_dolfinx.studies import fidelity
+
+    monkeypatch.setattr(fidelity, "run_fidelity_study", _recorder("fidelity ladder"))
+    for kwargs, flag in (({"resume": True}, "--resume"), ({"tol": 0.01}, "--tol"),
+                         ({"max_levels": 3}, "--max-levels"),
+                         ({"fidelity": "auto"}, "--fidelity auto")):
+        for route in ({"overrides": HARMONIC}, {"frequencies": "10,100"}):
+            with pytest.raises(InputError, match=f"{flag}: is not available on the frequency"):
+                ft.run("1pt", tmp_path, progress=False, **route, **kwargs)
 
 
 # --- the same numbers --------------------------------------------------------------------------

@@ -499,7 +499,13 @@ def plot_population_3d(afferents: dict, path: Path, title: str = "") -> None:
     and along the finger), one panel per class, coloured by mean firing rate over the run
     (one colour scale); afferents.csv's columns."""
     names = [n for n in CLASS_MARKERS if np.any(afferents["class"] == n)]
-    fig = Figure(figsize=(3.2 * len(names) + 1.2, 4.8), layout="constrained")
+    # Panels of equal aspect, 3.2 in wide: the figure as tall as the pulp's extent along the
+    # finger makes them, plus the titles and the axis label (at a fixed 4.8 in, the layout
+    # gave the panels more height than the aspect lets them use and the x label fell off
+    # the bottom).
+    extent = np.ptp(afferents["z_mm"]) / max(float(np.ptp(afferents["x_mm"])), 1e-9)
+    fig = Figure(figsize=(3.2 * len(names) + 1.2, 2.9 * min(max(extent, 0.5), 3.0) + 1.6),
+                 layout="constrained")
     axes = np.atleast_1d(fig.subplots(1, len(names), sharex=True, sharey=True))
     rate = afferents["mean_rate_per_s"]
     norm = Normalize(0.0, max(float(np.max(rate, initial=0.0)), 1.0))

@@ -205,9 +205,9 @@ class StepOptions:
             raise ValueError(f"steps_per_period must be an integer >= 4 (a step per quarter "
                              f"period at least), got {self.steps_per_period!r}")
         if self.scheme == "generalized-alpha" and self.control == "error":
-            raise ValueError("control = 'error' has no error estimate for the generalized-alpha "
-                             "scheme: use control = 'iterations' (steps_per_period sets the "
-                             "accuracy)")
+            raise InputError("control", "'error' has no error estimate for the "
+                             "generalized-alpha scheme.", "use control = 'iterations' "
+                             "(steps_per_period sets the accuracy).")
         if self.scheme in SECOND_ORDER_RATE and not max(self.growth, self.hold_growth) < \
                 BDF2_GROWTH_LIMIT:
             raise ValueError(f"BDF2 is unstable for step ratios above 1 + √2: need growth and "

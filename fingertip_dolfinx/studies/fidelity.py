@@ -93,7 +93,8 @@ def pick(rows: list[dict], tol: float) -> tuple[str, str]:
            f"is {best['max_error']:.2%} <= {tol:.2%} (worst output: {worst})")
     if cheaper:
         why += "; cheaper ones miss: " + ", ".join(
-            f"{r['model']} ({r['max_error']:.1%})" for r in cheaper)
+            f"{r['model']} ({'failed' if r.get('failure') else format(r['max_error'], '.1%')})"
+            for r in cheaper)
     return best["model"], why
 
 

@@ -215,10 +215,12 @@ def _plot_key(ax, key, x, rows: list[dict], colours, log: bool, ticks) -> None:
 
 
 def _sci(ax) -> None:
-    """y ticks as 1.40 with a ×10⁻³ above the axis, not 0.0014."""
+    """y ticks as 1.40 with a ×10⁻³ above the axis, not 0.0014; values that differ in their
+    sixth digit (a parameter the output hardly feels) as 1.439380 ×10⁻³, not as an offset
+    (×10⁻⁹ + 1.4393×10⁻³ above the axis, ticks 74–80), which reads as a different number."""
     from matplotlib.ticker import ScalarFormatter
 
-    formatter = ScalarFormatter(useMathText=True)
+    formatter = ScalarFormatter(useMathText=True, useOffset=False)
     formatter.set_powerlimits((-2, 3))
     ax.yaxis.set_major_formatter(formatter)
     ax.tick_params(labelsize=7)
