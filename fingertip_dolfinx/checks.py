@@ -96,7 +96,9 @@ def writable(out: Path, label: str = "--out") -> str:
     except OSError as error:
         raise InputError(f"{label} {out}", f"no file can be written in {folder} "
                          f"({error.strerror}).", "give a folder you can write to.") from None
-    return f"{out}: writable" + ("" if out.exists() else f" (to be made in {folder})")
+    # the folder by its full name: a relative `out` whose parents do not exist yet is made in
+    # the working folder, which a bare "." would not name
+    return f"{out}: writable" + ("" if out.exists() else f" (to be made in {folder.resolve()})")
 
 
 def _mesh_and_reach(scene: Scene, comm: MPI.Comm) -> str:

@@ -136,3 +136,17 @@ def test_a_depth_not_written_is_answered_with_the_written_depths(tmp_path):
         result.depth_profile("sed_MPa", depth=0.75, t=1.0)
     with pytest.raises(InputError, match=r"t = 2.0 s.*\[1.0\] s"):
         result.depth_profile("sed_MPa", depth=0.5, t=2.0)
+
+
+def test_the_check_names_the_folder_a_new_out_is_made_in(tmp_path, monkeypatch):
+    """--check says where a new --out will be made: the nearest folder that exists, by its
+    full name (for results/x with no results/ yet, the working folder, not ".")."""
+    from pathlib import Path
+
+    from fingertip_dolfinx.checks import writable
+
+    monkeypatch.chdir(tmp_path)
+    assert writable(Path("results/x")) == f"results/x: writable (to be made in {tmp_path})"
+    (tmp_path / "results").mkdir()
+    assert writable(Path("results/x")).endswith(f"(to be made in {tmp_path / 'results'})")
+    assert writable(Path("results")) == "results: writable"
