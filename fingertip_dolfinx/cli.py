@@ -13,7 +13,9 @@ import ctypes
 import ctypes.util
 import dataclasses
 import json
+import signal
 import sys
+import threading
 from pathlib import Path
 
 from .datafiles import builtin_names
@@ -342,8 +344,13 @@ def _run_scene(args) -> int:
     except RunInterrupted as stop:
         if getattr(stop, "route", None) != "time":
             raise
-        _rank0_print(f"interrupted at t = {stop.time:.6g} s; continue with: "
-                     f"{_resume_command(args.argv, MPI.COMM_WORLD.size)}")
+        if stop.time > 0:
+            _rank0_print(f"interrupted at t = {stop.time:.6g} s; continue with: "
+                         f"{_resume_command(args.argv, MPI.COMM_WORLD.size)}")
+        else:  # within the first step's solve: no checkpoint yet, --resume would be refused
+            _rank0_print("interrupted at t = 0 s, before the first step was done: there is "
+                         "nothing to resume; start again with: "
+                         f"{_resume_command(args.argv, MPI.COMM_WORLD.size, resume=False)}")
         return 130
     {"time": _print_run, "adaptive": _print_adaptive,
      "frequency": _print_frequency}[result.route](result)
@@ -363,13 +370,14 @@ def _print_run(result) -> None:
     )
 
 
-def _resume_command(argv: list[str], ranks: int) -> str:
-    """The command line that continues this run: the same one, with --resume."""
+def _resume_command(argv: list[str], ranks: int, resume: bool = True) -> str:
+    """The command line that continues this run: the same one, with --resume (without it,
+    `resume=False`: the run starts again)."""
     import shlex
 
     launch = f"mpiexec -n {ranks} " if ranks > 1 else ""
-    resume = [] if "--resume" in argv else ["--resume"]
-    return f"{launch}fingertip {shlex.join([*argv, *resume])}"
+    argv = [a for a in argv if a != "--resume"]
+    return f"{launch}fingertip {shlex.join([*argv, *(['--resume'] if resume else [])])}"
 
 
 def _print_frequency(result) -> None:
@@ -587,6 +595,7 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit as e:  # --help (0) or a malformed command line (2, message printed)
         return int(e.code or 0)
     args.argv = list(sys.argv[1:] if argv is None else argv)  # for the line that resumes
+    restore = _term_interrupts()
     try:
         return args.handler(args)
     except FingertipError as e:
@@ -595,6 +604,35 @@ def main(argv: list[str] | None = None) -> int:
     except RunInterrupted as e:  # a run inside a sweep or study: stopped at a step boundary
         _rank0_print(f"fingertip {args.command}: {e}; its files are written")
         return 130
+    except KeyboardInterrupt as e:  # outside a run's steps: loading, meshing, between runs
+        _rank0_print(f"fingertip {args.command}: interrupted by {e.args[0] if e.args else 'SIGINT'}"
+                     " outside a time step (while starting, or between runs): no step was cut "
+                     "short, the files written are whole. Fix: give the command again (with "
+                     "--resume for a run that has a checkpoint).")
+        return 130
+    finally:
+        restore()
+
+
+def _raise_interrupt(number, frame) -> None:
+    raise KeyboardInterrupt(signal.Signals(number).name)
+
+
+def _term_interrupts():
+    """Until a run installs its own handlers (`runner.Interrupts`: while the libraries load,
+    the scene is read, a sweep is between two runs), SIGTERM stops the command as Ctrl-C does,
+    with one line and exit 130. Without this, PETSc's handler, installed when petsc4py starts
+    PETSc (so PETSc is started first here), takes SIGTERM: `PETSC ERROR: Caught signal number
+    15 Terminate` and an MPI_Abort. A SIGTERM ignored by the caller stays ignored. Returns the
+    function that puts the previous handler back (called when the command returns)."""
+    from petsc4py import PETSc  # noqa: F401  (PetscInitialize installs PETSc's signal handlers)
+
+    previous = signal.getsignal(signal.SIGTERM)
+    if previous is signal.SIG_IGN or threading.current_thread() is not threading.main_thread():
+        return lambda: None
+    signal.signal(signal.SIGTERM, _raise_interrupt)
+    return lambda: signal.signal(signal.SIGTERM, previous if previous is not None
+                                 else signal.SIG_DFL)
 
 
 def _rank0_print(message: str) -> None:

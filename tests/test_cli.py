@@ -163,3 +163,59 @@ def test_the_command_reuses_freed_memory_without_page_faults():
 
     assert faults("default") > PAGES // 2  # most pages fault again
     assert faults("keep") < PAGES // 100   # reused: no new pages
+
+
+def _run_raising(monkeypatch, error):
+    import fingertip_dolfinx.routes as routes
+
+    def raising(*args, **kwargs):
+        raise error
+
+    monkeypatch.setattr(routes, "run", raising)
+
+
+def test_ctrl_c_before_the_first_step_is_one_line_and_exit_130(monkeypatch, tmp_path, capsys):
+    # Ctrl-C while the libraries load or the scene is read (before the run's own handlers):
+    # a KeyboardInterrupt, which ended the command with a traceback.
+    _run_raising(monkeypatch, KeyboardInterrupt())
+    try:
+        code = main(["run", "1pt", "--out", str(tmp_path), "--quiet"])
+    except KeyboardInterrupt:
+        code = "a traceback"
+    assert code == 130
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "interrupted by SIGINT outside a time step" in err
+
+
+def test_a_run_stopped_in_its_first_step_says_to_start_again_not_resume(monkeypatch, tmp_path,
+                                                                        capsys):
+    # Stopped within the first step's Newton solve, a run has no checkpoint: the line used to
+    # say "continue with: ... --resume", which --resume then refuses.
+    from fingertip_dolfinx.errors import RunInterrupted
+
+    stop = RunInterrupted(0.0, "SIGTERM", {})
+    stop.route = "time"
+    _run_raising(monkeypatch, stop)
+    assert main(["run", "1pt", "--out", str(tmp_path), "--quiet"]) == 130
+    err = capsys.readouterr().err.strip()
+    assert "before the first step was done: there is nothing to resume" in err
+    assert err.endswith(f"fingertip run 1pt --out {tmp_path} --quiet")
+
+
+def test_sigterm_while_starting_is_one_line_not_petscs_abort(tmp_path):
+    # PETSc's own SIGTERM handler (installed when petsc4py starts PETSc) printed
+    # "PETSC ERROR: Caught signal number 15" and called MPI_Abort.
+    code = ("import os, signal, time\n"
+            "import fingertip_dolfinx.routes as routes\n"
+            "from fingertip_dolfinx.cli import main\n"
+            "def run(*args, **kwargs):\n"
+            "    from petsc4py import PETSc\n"
+            "    os.kill(os.getpid(), signal.SIGTERM)\n"
+            "    time.sleep(30)\n"
+            "routes.run = run\n"
+            f"raise SystemExit(main(['run', '1pt', '--out', {str(tmp_path)!r}, '--quiet']))\n")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            timeout=120)
+    assert result.returncode == 130, result.stderr
+    assert "PETSC ERROR" not in result.stderr
+    assert "interrupted by SIGTERM outside a time step" in result.stderr
