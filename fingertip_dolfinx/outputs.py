@@ -358,10 +358,14 @@ def check_resume(old: dict, new: dict, t: float, out: Path) -> None:
         fix = f"start a new --out, or resume without --set {key}=... (or with {key} = {a!r})"
         if key == "output.times":
             written = [x for x in a if x <= t + 1e-12]
-            if written == [x for x in b if x <= t + 1e-12]:
+            asked = [x for x in b if x <= t + 1e-12]
+            if written == asked:
                 continue
-            fix = (f"keep the output times already written, {written}, in output.times (times "
-                   f"after {t:g} s may be added), or start a new --out")
+            fix = (f"keep the output times up to {t:g} s as they were, {written} (the run is "
+                   f"past them: {sorted(set(asked) - set(written)) or 'none'} cannot be "
+                   f"written now, {sorted(set(written) - set(asked)) or 'none'} are written "
+                   f"already); times after {t:g} s may be added or dropped. Or start a new "
+                   "--out")
         raise InputError(f"--resume {out}: {key}", f"the run there was computed to t = {t:g} s "
                          f"with {key} = {_shown(a)}; this scene has {_shown(b)}. Resuming would "
                          f"mix two experiments (the record: {out}/checkpoint/scene.json).", fix)

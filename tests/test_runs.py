@@ -192,7 +192,9 @@ def test_what_a_resume_may_change():
                       (["output.depths=[0.5]"], "output.depths")):
         with pytest.raises(InputError, match=key):
             resumed(*sets)
-    with pytest.raises(InputError, match=r"keep the output times already written, \[0.2\]"):
+    with pytest.raises(InputError, match=r"keep the output times up to 0.5 s as they were, "
+                       r"\[0.2\] \(the run is past them: \[0.3\] cannot be written now, "
+                       r"\[0.2\] are written already\)"):
         resumed("output.times=[0.3, 1.0]")
 
 
