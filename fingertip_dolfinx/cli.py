@@ -148,6 +148,9 @@ def _add_sweep(subparsers) -> None:
                    help="values of --param (read as TOML: 1e-2, [0.1, 0.2])")
     p.add_argument("--factors", type=float, nargs="+", metavar="F",
                    help="multiply the scene's value of --param by each factor")
+    p.add_argument("--resume", action="store_true",
+                   help="continue a sweep stopped part-way: each run with a checkpoint in "
+                   "DIR continues from it (a finished one is kept), the others start")
     _add_scene_options(p, check=True)
     p.set_defaults(handler=_sweep_or_check)
 
@@ -416,7 +419,7 @@ def _run_sweep(args) -> int:
     from .studies.sweep import run_sweep
 
     result = run_sweep(args.scene, args.spacings, args.out, _scene_overrides(args),
-                       progress=not args.quiet, spots=args.spots)
+                       progress=not args.quiet, spots=args.spots, resume=args.resume)
     threshold = result["threshold_mm"]
     _rank0_print(
         f"2pt sweep over {len(args.spacings)} spacings: threshold "
@@ -445,7 +448,7 @@ def _run_parameter_sweep(args) -> int:
         values = [parse_override(f"v={text}")[1] for text in args.values]
     result = parameter_sweep(args.scene, args.param, args.out, values=values,
                              factors=args.factors, overrides=_scene_overrides(args),
-                             progress=not args.quiet)
+                             progress=not args.quiet, resume=args.resume)
     for row in result["rows"]:
         _rank0_print(f"{row['label']:>24}: " + ", ".join(
             f"{key.short} {row[key.column]:.5g}" for key in KEY_OUTPUTS))
@@ -602,7 +605,11 @@ def main(argv: list[str] | None = None) -> int:
         _rank0_print(f"fingertip {args.command}: error: {e}")
         return 2 if isinstance(e, InputError) else 1
     except RunInterrupted as e:  # a run inside a sweep or study: stopped at a step boundary
-        _rank0_print(f"fingertip {args.command}: {e}; its files are written")
+        from mpi4py import MPI
+
+        again = (f"; continue with: {_resume_command(args.argv, MPI.COMM_WORLD.size)}"
+                 if args.command == "sweep" else "")
+        _rank0_print(f"fingertip {args.command}: {e}; its files are written{again}")
         return 130
     except KeyboardInterrupt as e:  # outside a run's steps: loading, meshing, between runs
         _rank0_print(f"fingertip {args.command}: interrupted by {e.args[0] if e.args else 'SIGINT'}"

@@ -129,8 +129,15 @@ def clear_earlier_run(out: Path, comm: MPI.Comm) -> None:
     that this run may not rewrite (a picture at a time it does not reach, its summary.json
     until this run writes its own), so that no file in the folder belongs to another run.
     Only the run's own file names go; anything else in the folder stays."""
+    remove_outputs(out, RUN_OUTPUTS, comm)
+
+
+def remove_outputs(out: Path, patterns, comm: MPI.Comm) -> None:
+    """Remove the files and folders in `out` named by the glob `patterns` (on rank 0; every
+    rank returns once they are gone): an earlier run's or sweep's own outputs, before a new
+    one writes its own, so that none is left describing another experiment."""
     if comm.rank == 0:
-        for pattern in RUN_OUTPUTS:
+        for pattern in patterns:
             for path in Path(out).glob(pattern):
                 if path.is_dir():
                     shutil.rmtree(path, ignore_errors=True)

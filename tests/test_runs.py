@@ -402,3 +402,32 @@ def test_a_side_by_side_run_that_fails_says_so_at_once_then_raises(monkeypatch, 
         runner.run_side_by_side([(scene, tmp_path / "a")], progress=False)
     said = capsys.readouterr().err
     assert "1pt" in said and str(tmp_path / "a") in said and "timed out" in said
+
+
+def test_a_stopped_sweep_leaves_no_earlier_table_and_resumes_its_runs(tmp_path, monkeypatch,
+                                                                       capsys):
+    # A sweep stopped part-way into the folder of an earlier one left the earlier sweep.csv,
+    # summary.json and sweep.png beside runs of another experiment; and a sweep had no way to
+    # continue its runs (run again, it started every one afresh).
+    import fingertip_dolfinx.runner as runner
+    from fingertip_dolfinx.errors import RunInterrupted
+
+    for name in ("sweep.csv", "summary.json", "sweep.png", "notes.txt"):
+        (tmp_path / name).write_text("an earlier sweep's\n")
+    (tmp_path / "k0-x1" / "checkpoint").mkdir(parents=True)
+    (tmp_path / "k0-x1" / "checkpoint" / "rank0.npz").write_bytes(b"")
+    calls = []
+
+    def stopped(scene, out, *, resume=False, **kwargs):
+        calls.append((out.name, resume))
+        if out.name == "k0-x10":
+            raise RunInterrupted(0.3, "SIGINT", {})
+
+    monkeypatch.setattr(runner, "run_scene", stopped)
+    argv = ["sweep", "1pt", "--param", "materials.subcutaneous.permeability.k0", "--factors",
+            "1", "10", "--out", str(tmp_path), "--quiet"]
+    assert main([*argv, "--resume"]) == 130
+    assert calls == [("k0-x1", True), ("k0-x10", False)]  # k0-x10 has no checkpoint: afresh
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["k0-x1", "notes.txt"]
+    err = capsys.readouterr().err.strip()
+    assert err.endswith(f"continue with: fingertip {' '.join(argv)} --resume")
