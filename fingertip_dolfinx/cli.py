@@ -284,6 +284,10 @@ def _run_or_check(args) -> int:
         if args.tol is not None and not 0 < args.tol < 1:
             raise InputError(f"--tol {args.tol}", "must be a relative error in (0, 1).",
                              "give e.g. --tol 0.01 for 1 %.")
+        if args.frequencies is not None:
+            from .harmonic_options import parse_frequencies
+
+            parse_frequencies(args.frequencies, f"--frequencies {args.frequencies}")
         return _print_check(args, _scene_overrides(args), args.spacing)
     _need_out(args)
     return _run_scene(args)

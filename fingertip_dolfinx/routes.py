@@ -243,6 +243,7 @@ def _frequency(scene: Scene, out: Path, frequencies, state, resume, tol, fidelit
     from mpi4py import MPI
 
     from .frequency_response import run_frequency_response
+    from .harmonic_options import parse_frequencies
     from .result import FrequencyResult
 
     for flag, given in (("--resume", resume), ("--tol", tol is not None),
@@ -250,6 +251,8 @@ def _frequency(scene: Scene, out: Path, frequencies, state, resume, tol, fidelit
         if given:
             raise InputError(flag, "is not available on the frequency route.",
                              f"drop {flag} (or --frequencies).")
+    if frequencies is not None:  # named as given (the scene's [harmonic] names its own key)
+        frequencies = parse_frequencies(frequencies, f"--frequencies {frequencies}")
     run_frequency_response(scene, out, frequencies=frequencies, state=state, progress=progress,
                            comm=comm or MPI.COMM_WORLD)
     return FrequencyResult(out)

@@ -775,9 +775,7 @@ def _indenters(data: dict, where: str) -> list[Indenter]:
 
 def _pair(indenters: list[Indenter], spacing, where: str) -> list[Indenter]:
     """Two copies of the one indenter at x = ±spacing/2 (the two-point test)."""
-    spacing = float(spacing)
-    if spacing <= 0:
-        raise InputError(where, f"must be positive, got {spacing}.")
+    spacing = positive(where, spacing, "mm")  # a NaN or inf, too, is no spacing
     if len(indenters) != 1:
         raise InputError(where, "places a pair: give exactly one indenter.")
     width = getattr(indenters[0], "width", 0.0)

@@ -44,6 +44,7 @@ FILES = {
                                 "ramp_time = 1.0\nend_time = 1.0\n"),
     "scene/sharp.toml": 'shape = "cylinder"\nradius = -1.0\n',
     "scene/broken.toml": "[protocol\ndepth = 1\n",
+    "scene/latin1.toml": 'description = "Haut, Unterhautgewebe, Kn\xf6chel"\n'.encode("latin-1"),
     "config/typo.toml": "[protocol]\ndept = 0.5\n",
     "config/cylinder.toml": '[[indenters]]\nfile = "indenter.toml"\nradius = 5.0\n',
     "config/indenter.toml": 'shape = "cylinder"\nradius = 4.0\n',
@@ -152,6 +153,10 @@ CASES = [
     Case("--out is a file", ("run", "1pt", "--check", "--out", "{d}/a-file"),
          names="--out {d}/a-file"),
     Case("--tol out of range", ("run", "1pt", "--check", "--tol", "2"), names="--tol 2"),
+    Case("NaN bar spacing", ("run", "2pt", "--check", "--spacing", "nan"),
+         names="spacing nan: spacing: must be finite"),
+    Case("frequency range backwards", ("run", "vibrotactile", "--check", "--frequencies",
+                                       "1000:1:40"), names="--frequencies 1000:1:40"),
     Case("--config missing", ("run", "1pt", "--check", "--config", "{d}/config/nope.toml"),
          names="--config {d}/config/nope.toml"),
     Case("--config not TOML", ("run", "1pt", "--check", "--config", "{d}/config/broken.toml"),
@@ -165,6 +170,8 @@ CASES = [
          names="{d}/scene/typo.toml"),
     Case("scene file not TOML", ("run", "{d}/scene/broken.toml", "--check"),
          names="{d}/scene/broken.toml"),
+    Case("scene file not UTF-8", ("run", "{d}/scene/latin1.toml", "--check"),
+         names="{d}/scene/latin1.toml: is not a text file in UTF-8"),
     Case("scene file's Prony override", ("run", "{d}/scene/prony.toml", "--check"),
          names="{d}/scene/prony.toml"),
     Case("bad value in a materials file", ("run", "{d}/scene/bad-materials.toml", "--check"),
@@ -215,7 +222,7 @@ def fixtures(folder: Path) -> Path:
         path.parent.mkdir(parents=True, exist_ok=True)
         if text is None:  # the paper's materials with a negative bone modulus
             text = find("materials", "wu2004", "").read_text().replace("E = 17000.0", "E = -1.0")
-        path.write_text(text)
+        path.write_bytes(text) if isinstance(text, bytes) else path.write_text(text)
     return folder
 
 
