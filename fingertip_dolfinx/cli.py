@@ -26,6 +26,15 @@ from .routes import AUTO_FIDELITY_TOL, FIDELITY_COARSE
 SCENES = ", ".join(builtin_names("scenes"))
 
 
+def _folder(text: str) -> Path:
+    """--out: an empty one (an unset shell variable, `--out "$OUT"`) would be the working
+    folder, where a fresh run removes an earlier run's files by their names."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("is empty (an unset shell variable?): give the folder "
+                                         "the results go to, e.g. --out results/1pt")
+    return Path(text)
+
+
 def _add_mesh(subparsers) -> None:
     p = subparsers.add_parser(
         "mesh",
@@ -51,7 +60,7 @@ def _add_mesh(subparsers) -> None:
         "--quad", action="store_true",
         help="recombine into quadrilaterals (for Q2/Q1) instead of triangles",
     )
-    p.add_argument("--out", required=True, type=Path, metavar="DIR", help="output directory")
+    p.add_argument("--out", required=True, type=_folder, metavar="DIR", help="output directory")
     p.set_defaults(handler=_run_mesh)
 
 
@@ -64,7 +73,7 @@ def _add_scene_options(p, check: bool = False) -> None:
                    help="override one scene key, e.g. --set model.subcutaneous=drained "
                    "--set section.mesh.min_size=0.05 (repeatable; values read as TOML; "
                    "relative paths from the working directory)")
-    p.add_argument("--out", required=not check, type=Path, metavar="DIR",
+    p.add_argument("--out", required=not check, type=_folder, metavar="DIR",
                    help="output directory" + (" (with --check: checked if given)" if check
                                               else ""))
     p.add_argument("--quiet", action="store_true", help="no progress display")

@@ -86,6 +86,9 @@ def run(scene: Scene | str | Path, out: str | Path, *,
     to the last good step); `RunInterrupted` on SIGINT/SIGTERM (its `route` set too).
     """
     say = say or _printer(progress)
+    if isinstance(out, str) and not out.strip():  # Path("") is the working folder
+        raise InputError(f"out {out!r}", "is empty: it would be the working folder.",
+                         'give the folder the results go to, e.g. "results/1pt".')
     out = Path(out)
     scene, mesh_tol = _scene_of(scene, out, overrides, spacing, tol, fidelity, fidelity_table,
                                 progress, say)

@@ -219,3 +219,28 @@ def test_sigterm_while_starting_is_one_line_not_petscs_abort(tmp_path):
     assert result.returncode == 130, result.stderr
     assert "PETSC ERROR" not in result.stderr
     assert "interrupted by SIGTERM outside a time step" in result.stderr
+
+
+@pytest.mark.parametrize("command", [["run", "1pt"], ["sweep", "1pt", "--param",
+                                                       "protocol.depth", "--values", "0.5"],
+                                     ["mesh"]])
+def test_an_empty_out_is_refused_not_the_working_folder(command, tmp_path, monkeypatch,
+                                                        capsys):
+    # --out "$OUT" with OUT unset was Path("") = ".": the run wrote into the working folder,
+    # first removing an earlier run's files there by their names.
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "summary.json").write_text("{}")
+    assert main([*command, "--out", "", "--quiet"] if command[0] != "mesh"
+                else [*command, "--out", ""]) == 2
+    assert "argument --out: is empty" in capsys.readouterr().err
+    assert [p.name for p in tmp_path.iterdir()] == ["summary.json"]
+
+
+def test_an_empty_out_is_refused_from_python(tmp_path, monkeypatch):
+    import fingertip_dolfinx as ft
+    from fingertip_dolfinx.errors import InputError
+
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(InputError, match="out '': is empty"):
+        ft.run("1pt", "", progress=False)
+    assert not list(tmp_path.iterdir())
