@@ -431,3 +431,20 @@ def test_a_stopped_sweep_leaves_no_earlier_table_and_resumes_its_runs(tmp_path, 
     assert sorted(p.name for p in tmp_path.iterdir()) == ["k0-x1", "notes.txt"]
     err = capsys.readouterr().err.strip()
     assert err.endswith(f"continue with: fingertip {' '.join(argv)} --resume")
+
+
+@pytest.mark.parametrize("study, report", [("fidelity", "fidelity.md"),
+                                           ("accuracy", "accuracy.md")])
+def test_a_stopped_study_leaves_no_earlier_report(study, report, tmp_path, monkeypatch):
+    # A study stopped part-way into the folder of an earlier one left the earlier report
+    # (accuracy.md, fidelity.md, their tables and charts) beside runs of this one.
+    import fingertip_dolfinx.runner as runner
+
+    def stopped(scene, out, **kwargs):
+        raise RunInterrupted(0.3, "SIGTERM", {})
+
+    monkeypatch.setattr(runner, "run_scene", stopped)
+    (tmp_path / report).write_text("an earlier study's\n")
+    (tmp_path / "notes.txt").write_text("mine\n")
+    assert main(["study", study, "--scene", "1pt", "--out", str(tmp_path)]) == 130
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]
