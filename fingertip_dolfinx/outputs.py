@@ -351,7 +351,7 @@ def common_time(held: list[list[float]]) -> float | None:
 FREE_ON_RESUME = ("description", "output.pictures", "output.fields", "output.field_every")
 
 
-def check_resume(old: dict, new: dict, t: float, out: Path) -> None:
+def check_resume(old: dict, new: dict, t: float, out: Path, changes=()) -> None:
     """Refuse to continue the run in `out`, checkpointed at `t` with the scene record `old`,
     with a scene (record `new`) that would mix two experiments: every key must be the same but
     FREE_ON_RESUME, the protocol where it leaves the load d(t) on [0, t] and its kinks before t
@@ -363,6 +363,10 @@ def check_resume(old: dict, new: dict, t: float, out: Path) -> None:
                                      and _same_load(old["protocol"], new["protocol"], t)):
             continue
         fix = f"start a new --out, or resume without --set {key}=... (or with {key} = {a!r})"
+        if not any(key == k or key.startswith(f"{k}.") for k in _override_keys(changes)):
+            fix = (f"start a new --out, or put {key} = {a!r} back where this scene takes it "
+                   "from (the scene file, or the materials, section or indenter file it "
+                   "names), as the run had it")
         if key == "output.times":
             written = [x for x in a if x <= t + 1e-12]
             asked = [x for x in b if x <= t + 1e-12]
@@ -376,6 +380,11 @@ def check_resume(old: dict, new: dict, t: float, out: Path) -> None:
         raise InputError(f"--resume {out}: {key}", f"the run there was computed to t = {t:g} s "
                          f"with {key} = {_shown(a)}; this scene has {_shown(b)}. Resuming would "
                          f"mix two experiments (the record: {out}/checkpoint/scene.json).", fix)
+
+
+def _override_keys(changes) -> list[str]:
+    """The keys the overrides (`Scene.changes`: `--set`, `--config`, Python) set."""
+    return [str(text).partition("=")[0].strip() for text in changes]
 
 
 def _shown(value) -> str:

@@ -158,7 +158,7 @@ def completed_summary(scene: Scene, out: Path, comm: MPI.Comm) -> dict | None:
     completed, to the scene's end time); None if there is more to compute. A scene that would
     mix two experiments is refused (`check_resume`)."""
     record, t = Checkpoint(out, comm).stored()
-    check_resume(record, scene_record(scene), t, out)
+    check_resume(record, scene_record(scene), t, out, scene.changes)
     path = out / "summary.json"
     if t < scene.history.end_time - 1e-12 or not path.exists():
         return None
@@ -292,7 +292,7 @@ class Run:
         record = scene_record(self.scene)
         if resume:
             stored, t = self.checkpoint.stored()
-            check_resume(stored, record, t, self.out)
+            check_resume(stored, record, t, self.out, self.scene.changes)
         else:
             clear_earlier_run(self.out, self.comm)
             self.checkpoint.start(record)

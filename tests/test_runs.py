@@ -448,3 +448,18 @@ def test_a_stopped_study_leaves_no_earlier_report(study, report, tmp_path, monke
     (tmp_path / "notes.txt").write_text("mine\n")
     assert main(["study", study, "--scene", "1pt", "--out", str(tmp_path)]) == 130
     assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]
+
+
+def test_a_value_changed_in_a_file_is_named_as_such_on_resume():
+    # A materials file edited between the run and its --resume: refused, but the fix said
+    # "resume without --set materials.bone.E=...", which no --set had given.
+    base = scene_record(load_scene("1pt", SETS))
+    edited = scene_record(load_scene("1pt", [*SETS, "materials.bone.E=18000"]))
+    with pytest.raises(InputError, match=r"put materials.bone.E = 17000.0 back where this "
+                       r"scene takes it from \(the scene file, or the materials"):
+        check_resume(base, edited, 0.5, Path("D"))
+    with pytest.raises(InputError, match=r"resume without --set materials.bone.E=\.\.\."):
+        check_resume(base, edited, 0.5, Path("D"), ["materials.bone.E=18000"])
+    with pytest.raises(InputError, match=r"resume without --set indenters.0.width"):
+        check_resume(base, scene_record(load_scene("1pt", [*SETS, "indenters.0.width=0.8"])),
+                     0.5, Path("D"), ['indenters=[{file = "bar", width = 0.8}]'])
