@@ -609,6 +609,12 @@ def load_scene(source: str | Path, overrides: Mapping | Sequence[str] = (),
         For any bad value; the message names where it came from (the scene file, a file it
         names, ``--set``, ``--config FILE`` or the Python override), the key and the fix.
     """
+    if not isinstance(source, str | Path):
+        raise InputError(f"load_scene({source!r})", "is not a scene's name or file.",
+                         'give a built-in scene\'s name ("1pt") or a path to a .toml file.')
+    if isinstance(overrides, str) or not isinstance(overrides, Mapping | Sequence):
+        raise InputError(f"overrides={overrides!r}", "is not a table or a list of overrides.",
+                         'give {"protocol": {"depth": 0.5}} or ["protocol.depth=0.5"].')
     path = scene_path(source)
     data = anchor_paths(read_toml(path), path.parent)
     sources = {leaf: str(path) for leaf in _leaves(data)}

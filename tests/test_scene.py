@@ -285,3 +285,13 @@ def test_sweep_spots_sit_under_the_bars_and_midway_at_the_output_depth():
         assert {depth for _, depth in scene.section.mesh.spots} == {scene.depths[0]}
         assert sorted(i.centre_x for i in scene.indenters) == [-d / 2, d / 2]
     assert sweep_scenes("2pt", spacings[:1])[0].section.mesh.spots == ()
+
+
+@pytest.mark.parametrize("source, overrides, where", [
+    (None, (), "load_scene(None)"), ("1pt", 5, "overrides=5"),
+    ("1pt", "protocol.depth=0.5", "overrides='protocol.depth=0.5'")])
+def test_load_scene_of_a_wrong_kind_is_an_input_error(source, overrides, where):
+    # Were TypeErrors from deep inside (a Path of None, iterating an int), or a string of
+    # overrides read character by character.
+    with pytest.raises(InputError, match=re.escape(where)):
+        load_scene(source, overrides)
