@@ -625,13 +625,32 @@ def main(argv: list[str] | None = None) -> int:
         _rank0_print(f"fingertip {args.command}: {e}; its files are written{again}")
         return 130
     except KeyboardInterrupt as e:  # outside a run's steps: loading, meshing, between runs
-        _rank0_print(f"fingertip {args.command}: interrupted by {e.args[0] if e.args else 'SIGINT'}"
-                     " outside a time step (while starting, or between runs): no step was cut "
-                     "short, the files written are whole. Fix: give the command again (with "
-                     "--resume for a run that has a checkpoint).")
-        return 130
+        return _interrupted_outside_a_step(args.command, e.args[0] if e.args else "SIGINT")
     finally:
         restore()
+
+
+def _interrupted_outside_a_step(command: str, signal_name: str) -> int:
+    """One line and exit 130. Under mpiexec the ranks meet the signal at different places:
+    one may wait in a collective for a rank that has stopped (measured: a hang, or a rank's
+    SEGV as the others finalised), so the rank that stops ends them all (MPI_Abort)."""
+    message = (f"fingertip {command}: interrupted by {signal_name} outside a time step (while "
+               "starting, or between runs): no step was cut short, the files written are "
+               "whole. Fix: give the command again (with --resume for a run that has a "
+               "checkpoint).")
+    world = _world()
+    if world.size == 1:
+        _rank0_print(message)
+        return 130
+    print(message, file=sys.stderr, flush=True)  # this rank's: the others may never print
+    world.Abort(130)
+    return 130  # (not reached)
+
+
+def _world():
+    from mpi4py import MPI
+
+    return MPI.COMM_WORLD
 
 
 def _raise_interrupt(number, frame) -> None:

@@ -244,3 +244,21 @@ def test_an_empty_out_is_refused_from_python(tmp_path, monkeypatch):
     with pytest.raises(InputError, match="out '': is empty"):
         ft.run("1pt", "", progress=False)
     assert not list(tmp_path.iterdir())
+
+
+def test_ctrl_c_while_starting_under_mpi_ends_every_rank(monkeypatch, tmp_path, capsys):
+    # Under mpiexec a rank stopped while starting left the others waiting in a collective for
+    # it (measured: a hang, or a SEGV as it finalised): it must end them all.
+    import fingertip_dolfinx.cli as cli
+
+    class World:
+        size, aborted = 2, []
+
+        def Abort(self, code):
+            self.aborted.append(code)
+
+    monkeypatch.setattr(cli, "_world", World)
+    _run_raising(monkeypatch, KeyboardInterrupt("SIGTERM"))
+    assert main(["run", "1pt", "--out", str(tmp_path), "--quiet"]) == 130
+    assert World.aborted == [130]
+    assert "interrupted by SIGTERM outside a time step" in capsys.readouterr().err
