@@ -463,3 +463,26 @@ def test_a_value_changed_in_a_file_is_named_as_such_on_resume():
     with pytest.raises(InputError, match=r"resume without --set indenters.0.width"):
         check_resume(base, scene_record(load_scene("1pt", [*SETS, "indenters.0.width=0.8"])),
                      0.5, Path("D"), ['indenters=[{file = "bar", width = 0.8}]'])
+
+
+def test_a_sweep_table_cut_short_leaves_no_half_file(tmp_path, monkeypatch):
+    # sweep.csv was written in place: a kill (or an error) part-way left half a table.
+    import fingertip_dolfinx.studies.parameters as parameters
+
+    class Cut(Exception):
+        pass
+
+    class Writer:
+        def __init__(self, f, **kwargs):
+            self.f = f
+
+        def writeheader(self):
+            self.f.write("label,value\n")
+
+        def writerow(self, row):
+            raise Cut
+
+    monkeypatch.setattr(parameters.csv, "DictWriter", Writer)
+    with pytest.raises(Cut):
+        parameters._write([{"label": "k0-x1", "value": 1.0}], tmp_path)
+    assert not list(tmp_path.iterdir())

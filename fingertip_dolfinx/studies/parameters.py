@@ -22,7 +22,7 @@ from mpi4py import MPI
 
 from ..errors import InputError, on_root
 from ..keys import KEY_OUTPUTS, KEYS, TIME_COLUMNS, check_scene, key_outputs
-from ..outputs import read_csv, remove_outputs, write_json
+from ..outputs import read_csv, remove_outputs, whole, write_json
 
 #: The files a parameter sweep writes beside its runs' folders.
 SWEEP_OUTPUTS = ("sweep.csv", "summary.json", "sweep.png")
@@ -96,7 +96,7 @@ def scaled_value(value, factor: float, key: str):
 
 def _write(rows: list[dict], out: Path) -> None:
     columns = ["label", "value", *KEYS, *TIME_COLUMNS, "wall_time_s", "dofs"]
-    with (out / "sweep.csv").open("w", newline="") as f:
+    with whole(out / "sweep.csv") as tmp, tmp.open("w", newline="") as f:  # no half table
         writer = csv.DictWriter(f, fieldnames=columns, extrasaction="ignore")
         writer.writeheader()
         for row in rows:

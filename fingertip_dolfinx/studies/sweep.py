@@ -43,7 +43,7 @@ import numpy as np
 from mpi4py import MPI
 
 from ..errors import on_root
-from ..outputs import read_csv, remove_outputs, write_json
+from ..outputs import read_csv, remove_outputs, whole, write_json
 from ..plotting.figures import plot_spacing_profiles
 
 QUANTITIES = ("e11", "e22", "e12", "u2", "sed")
@@ -192,7 +192,7 @@ def _tabulate(scenes: list, spacings: Sequence[float], out: Path) -> dict:
             table[q].append(v[q])
     plot_spacing_profiles(profiles, out / "profiles_by_spacing.png", t, depth_mm,
                           title=f"{scene.name}: two bars at spacing d")
-    with (out / "normalized_variation.csv").open("w") as f:
+    with whole(out / "normalized_variation.csv") as tmp, tmp.open("w") as f:  # no half table
         f.write("spacing_mm," + ",".join(QUANTITIES) + "\n")
         for i, d in enumerate(spacings):
             f.write(f"{d:g}," + ",".join(f"{table[q][i]:.8g}" for q in QUANTITIES) + "\n")
