@@ -13,7 +13,9 @@ import ctypes
 import ctypes.util
 import dataclasses
 import json
+import signal
 import sys
+import threading
 from pathlib import Path
 
 from .datafiles import builtin_names
@@ -22,6 +24,15 @@ from .routes import AUTO_FIDELITY_TOL, FIDELITY_COARSE
 
 #: The built-in scenes, as the help lists them (the package's data/scenes/).
 SCENES = ", ".join(builtin_names("scenes"))
+
+
+def _folder(text: str) -> Path:
+    """--out: an empty one (an unset shell variable, `--out "$OUT"`) would be the working
+    folder, where a fresh run removes an earlier run's files by their names."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("is empty (an unset shell variable?): give the folder "
+                                         "the results go to, e.g. --out results/1pt")
+    return Path(text)
 
 
 def _add_mesh(subparsers) -> None:
@@ -49,7 +60,7 @@ def _add_mesh(subparsers) -> None:
         "--quad", action="store_true",
         help="recombine into quadrilaterals (for Q2/Q1) instead of triangles",
     )
-    p.add_argument("--out", required=True, type=Path, metavar="DIR", help="output directory")
+    p.add_argument("--out", required=True, type=_folder, metavar="DIR", help="output directory")
     p.set_defaults(handler=_run_mesh)
 
 
@@ -62,7 +73,7 @@ def _add_scene_options(p, check: bool = False) -> None:
                    help="override one scene key, e.g. --set model.subcutaneous=drained "
                    "--set section.mesh.min_size=0.05 (repeatable; values read as TOML; "
                    "relative paths from the working directory)")
-    p.add_argument("--out", required=not check, type=Path, metavar="DIR",
+    p.add_argument("--out", required=not check, type=_folder, metavar="DIR",
                    help="output directory" + (" (with --check: checked if given)" if check
                                               else ""))
     p.add_argument("--quiet", action="store_true", help="no progress display")
@@ -146,6 +157,9 @@ def _add_sweep(subparsers) -> None:
                    help="values of --param (read as TOML: 1e-2, [0.1, 0.2])")
     p.add_argument("--factors", type=float, nargs="+", metavar="F",
                    help="multiply the scene's value of --param by each factor")
+    p.add_argument("--resume", action="store_true",
+                   help="continue a sweep stopped part-way: each run with a checkpoint in "
+                   "DIR continues from it (a finished one is kept), the others start")
     _add_scene_options(p, check=True)
     p.set_defaults(handler=_sweep_or_check)
 
@@ -282,6 +296,10 @@ def _run_or_check(args) -> int:
         if args.tol is not None and not 0 < args.tol < 1:
             raise InputError(f"--tol {args.tol}", "must be a relative error in (0, 1).",
                              "give e.g. --tol 0.01 for 1 %.")
+        if args.frequencies is not None:
+            from .harmonic_options import parse_frequencies
+
+            parse_frequencies(args.frequencies, f"--frequencies {args.frequencies}")
         overrides = _scene_overrides(args)
         _check_run_keys(args, overrides)
         return _print_check(args, overrides, args.spacing)
@@ -368,8 +386,13 @@ def _run_scene(args) -> int:
     except RunInterrupted as stop:
         if getattr(stop, "route", None) != "time":
             raise
-        _rank0_print(f"interrupted at t = {stop.time:.6g} s; continue with: "
-                     f"{_resume_command(args.argv, MPI.COMM_WORLD.size)}")
+        if stop.time > 0:
+            _rank0_print(f"interrupted at t = {stop.time:.6g} s; continue with: "
+                         f"{_resume_command(args.argv, MPI.COMM_WORLD.size)}")
+        else:  # within the first step's solve: no checkpoint yet, --resume would be refused
+            _rank0_print("interrupted at t = 0 s, before the first step was done: there is "
+                         "nothing to resume; start again with: "
+                         f"{_resume_command(args.argv, MPI.COMM_WORLD.size, resume=False)}")
         return 130
     {"time": _print_run, "adaptive": _print_adaptive,
      "frequency": _print_frequency}[result.route](result)
@@ -389,13 +412,14 @@ def _print_run(result) -> None:
     )
 
 
-def _resume_command(argv: list[str], ranks: int) -> str:
-    """The command line that continues this run: the same one, with --resume."""
+def _resume_command(argv: list[str], ranks: int, resume: bool = True) -> str:
+    """The command line that continues this run: the same one, with --resume (without it,
+    `resume=False`: the run starts again)."""
     import shlex
 
     launch = f"mpiexec -n {ranks} " if ranks > 1 else ""
-    resume = [] if "--resume" in argv else ["--resume"]
-    return f"{launch}fingertip {shlex.join([*argv, *resume])}"
+    argv = [a for a in argv if a != "--resume"]
+    return f"{launch}fingertip {shlex.join([*argv, *(['--resume'] if resume else [])])}"
 
 
 def _print_frequency(result) -> None:
@@ -434,7 +458,7 @@ def _run_sweep(args) -> int:
     from .studies.sweep import run_sweep
 
     result = run_sweep(args.scene, args.spacings, args.out, _scene_overrides(args),
-                       progress=not args.quiet, spots=args.spots)
+                       progress=not args.quiet, spots=args.spots, resume=args.resume)
     threshold = result["threshold_mm"]
     _rank0_print(
         f"2pt sweep over {len(args.spacings)} spacings: threshold "
@@ -463,7 +487,7 @@ def _run_parameter_sweep(args) -> int:
         values = [parse_override(f"v={text}")[1] for text in args.values]
     result = parameter_sweep(args.scene, args.param, args.out, values=values,
                              factors=args.factors, overrides=_scene_overrides(args),
-                             progress=not args.quiet)
+                             progress=not args.quiet, resume=args.resume)
     for row in result["rows"]:
         _rank0_print(f"{row['label']:>24}: " + ", ".join(
             f"{key.short} {row[key.column]:.5g}" for key in KEY_OUTPUTS))
@@ -613,14 +637,67 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit as e:  # --help (0) or a malformed command line (2, message printed)
         return int(e.code or 0)
     args.argv = list(sys.argv[1:] if argv is None else argv)  # for the line that resumes
+    restore = _term_interrupts()
     try:
         return args.handler(args)
     except FingertipError as e:
         _rank0_print(f"fingertip {args.command}: error: {e}")
         return 2 if isinstance(e, InputError) else 1
     except RunInterrupted as e:  # a run inside a sweep or study: stopped at a step boundary
-        _rank0_print(f"fingertip {args.command}: {e}; its files are written")
+        from mpi4py import MPI
+
+        again = (f"; continue with: {_resume_command(args.argv, MPI.COMM_WORLD.size)}"
+                 if args.command == "sweep" else "")
+        _rank0_print(f"fingertip {args.command}: {e}; its files are written{again}")
         return 130
+    except KeyboardInterrupt as e:  # outside a run's steps: loading, meshing, between runs
+        return _interrupted_outside_a_step(args.command, e.args[0] if e.args else "SIGINT")
+    finally:
+        restore()
+
+
+def _interrupted_outside_a_step(command: str, signal_name: str) -> int:
+    """One line and exit 130. Under mpiexec the ranks meet the signal at different places:
+    one may wait in a collective for a rank that has stopped (measured: a hang, or a rank's
+    SEGV as the others finalised), so the rank that stops ends them all (MPI_Abort)."""
+    message = (f"fingertip {command}: interrupted by {signal_name} outside a time step (while "
+               "starting, or between runs): no step was cut short, the files written are "
+               "whole. Fix: give the command again (with --resume for a run that has a "
+               "checkpoint).")
+    world = _world()
+    if world.size == 1:
+        _rank0_print(message)
+        return 130
+    print(message, file=sys.stderr, flush=True)  # this rank's: the others may never print
+    world.Abort(130)
+    return 130  # (not reached)
+
+
+def _world():
+    from mpi4py import MPI
+
+    return MPI.COMM_WORLD
+
+
+def _raise_interrupt(number, frame) -> None:
+    raise KeyboardInterrupt(signal.Signals(number).name)
+
+
+def _term_interrupts():
+    """Until a run installs its own handlers (`runner.Interrupts`: while the libraries load,
+    the scene is read, a sweep is between two runs), SIGTERM stops the command as Ctrl-C does,
+    with one line and exit 130. Without this, PETSc's handler, installed when petsc4py starts
+    PETSc (so PETSc is started first here), takes SIGTERM: `PETSC ERROR: Caught signal number
+    15 Terminate` and an MPI_Abort. A SIGTERM ignored by the caller stays ignored. Returns the
+    function that puts the previous handler back (called when the command returns)."""
+    from petsc4py import PETSc  # noqa: F401  (PetscInitialize installs PETSc's signal handlers)
+
+    previous = signal.getsignal(signal.SIGTERM)
+    if previous is signal.SIG_IGN or threading.current_thread() is not threading.main_thread():
+        return lambda: None
+    signal.signal(signal.SIGTERM, _raise_interrupt)
+    return lambda: signal.signal(signal.SIGTERM, previous if previous is not None
+                                 else signal.SIG_DFL)
 
 
 def _rank0_print(message: str) -> None:

@@ -54,6 +54,12 @@ def read_toml(path: str | Path) -> dict:
             return tomllib.load(f)
     except tomllib.TOMLDecodeError as error:
         raise InputError(str(path), f"is not valid TOML: {error}.", "fix the syntax.") from None
+    except UnicodeDecodeError as error:  # TOML is UTF-8: a binary file, or another encoding
+        raise InputError(str(path), f"is not a text file in UTF-8 ({error.reason} at byte "
+                         f"{error.start}).", "give a TOML file (UTF-8 text); save it as "
+                         "UTF-8 if it was written in another encoding.") from None
+    except IsADirectoryError:
+        raise InputError(str(path), "is a folder, not a file.", "give a .toml file.") from None
 
 
 def package_version() -> str:

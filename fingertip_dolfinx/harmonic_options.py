@@ -33,6 +33,8 @@ def parse_frequencies(spec, where: str = "harmonic.frequencies") -> tuple[float,
             values = [float(spec)]
         else:
             values = [float(x) for x in spec]
+    except InputError:
+        raise  # (a ValueError too): its own message, not "cannot read"
     except (TypeError, ValueError):
         raise InputError(where, f"cannot read {spec!r}.", fix) from None
     values = tuple(float(f) for f in values)

@@ -412,6 +412,10 @@ KINDS = {"ramp-hold": RampHold, "piecewise-linear": PiecewiseLinear, "sinusoid":
 
 def history_from_dict(data: dict, where: str = "protocol") -> LoadHistory:
     """Build a protocol from a scene file's `[protocol]` table (`kind` picks the class)."""
+    if not isinstance(data, dict):
+        raise InputError(where, f"must be a table, got {data!r}.",
+                         'write [protocol] with its kind and times, e.g. {kind = "ramp-hold", '
+                         "depth = 1.0, ramp_time = 1.0, end_time = 1.0}.")
     data = dict(data)
     tangential = data.pop("tangential", None)
     force = data.pop("normal_force", None)
@@ -432,13 +436,28 @@ def history_from_dict(data: dict, where: str = "protocol") -> LoadHistory:
     allowed = [f.name for f in fields(cls) if f.init]
     required = [f.name for f in fields(cls) if f.init and f.default is dataclasses.MISSING]
     check_keys(f"{where} ({kind})", data, allowed, required)
+    lists = {f.name for f in fields(cls) if str(f.type).startswith("tuple")}
     for key, value in data.items():
-        if isinstance(value, list):
-            data[key] = tuple(value)
-        if isinstance(value, bool) or not isinstance(value, int | float | list | tuple):
-            raise InputError(f"{where}.{key}", f"must be a number or a list of numbers, got "
-                             f"{value!r}.", "write a number.")
+        data[key] = _numbers(f"{where}.{key}", value, key in lists)
     return cls(**data)
+
+
+def _numbers(where: str, value, listed: bool):
+    """A protocol's value: a finite number, or for a key that takes a list (`listed`: times,
+    values, amplitudes, frequencies) a list of them (as a tuple; a number is a list of one).
+    An infinite depth or end time, or a NaN, would pass every comparison the protocols make."""
+    items = value if isinstance(value, list | tuple) else None
+    if items is not None and not listed:
+        raise InputError(where, f"must be one number, got the list {value!r}.",
+                         "write a single number.")
+    for x in [value] if items is None else items:
+        if isinstance(x, bool) or not isinstance(x, int | float):
+            raise InputError(where, f"must be a number{' or a list of numbers' * listed}, got "
+                             f"{value!r}.", "write a number.")
+        if not math.isfinite(x):
+            raise InputError(where, f"must be finite, got {value!r}.",
+                             "write a finite number (mm, s or Hz).")
+    return value if items is None else tuple(items)
 
 
 def _tangential(data, where: str) -> tuple[PiecewiseLinear, tuple[float, float]]:
@@ -446,9 +465,9 @@ def _tangential(data, where: str) -> tuple[PiecewiseLinear, tuple[float, float]]
     piecewise-linear path, and its optional `direction` [d_x, d_z] (default [1, 0]: +x)."""
     check_keys(where, data, ["times", "values", "direction"], ["times", "values"])
     for key, value in data.items():
-        if not isinstance(value, list | tuple) or not all(
-                isinstance(x, int | float) and not isinstance(x, bool) for x in value):
+        if not isinstance(value, list | tuple):
             raise InputError(f"{where}.{key}", f"must be a list of numbers, got {value!r}.")
+        _numbers(f"{where}.{key}", value, True)
     direction = unit_direction(data.get("direction", (1.0, 0.0)), f"{where}.direction")
     return PiecewiseLinear(tuple(data["times"]), tuple(data["values"])), direction
 

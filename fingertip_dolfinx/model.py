@@ -57,6 +57,7 @@ from .physics.materials import (
 from .physics.poroelasticity import mass_residual
 from .physics.tissues import REGIONS, Rigid, Tissues
 from .physics.viscoelasticity import QuasiLinearViscoelasticity
+from .validation import number
 
 SUBCUTANEOUS_MODELS = ("biphasic", "undrained", "drained")
 TISSUE_MODELS = ("layered", "continuum")
@@ -139,6 +140,7 @@ class ModelOptions:
     inertia: bool = False
 
     def __post_init__(self):
+        self._check_contact_numbers()
         if self.displacement_degree not in (1, 2, 3):
             raise InputError(
                 "model.displacement_degree", f"got {self.displacement_degree}.", "use 1, 2 or 3."
@@ -173,6 +175,21 @@ class ModelOptions:
                 "regime.",
                 "use displacement_degree = 2.",
             )
+
+
+    def _check_contact_numbers(self) -> None:
+        """γ0 > 0 (a zero or negative penalty pulls the skin into the indenter), a smoothing
+        width >= 0 (mm) and a compaction margin in [0, 1) (J starts at 1 above φ0 + margin)."""
+        for key, value, ok, fix in (
+                ("contact_gamma0", self.contact_gamma0, lambda x: x > 0,
+                 "use a positive γ0 (10, the default; 100 for penalty contact at a sharp tip)."),
+                ("contact_smoothing", self.contact_smoothing, lambda x: x >= 0,
+                 "use 0 (an exact kink) or a gap width in mm, e.g. 1e-4."),
+                ("compaction_margin", self.compaction_margin, lambda x: 0 <= x < 1,
+                 "use a margin in [0, 1) above φ0 (0.02, the default).")):
+            x = number(f"model.{key}", value)
+            if not ok(x):
+                raise InputError(f"model.{key}", f"got {x}.", fix)
 
 
 @dataclass(frozen=True)

@@ -129,8 +129,15 @@ def clear_earlier_run(out: Path, comm: MPI.Comm) -> None:
     that this run may not rewrite (a picture at a time it does not reach, its summary.json
     until this run writes its own), so that no file in the folder belongs to another run.
     Only the run's own file names go; anything else in the folder stays."""
+    remove_outputs(out, RUN_OUTPUTS, comm)
+
+
+def remove_outputs(out: Path, patterns, comm: MPI.Comm) -> None:
+    """Remove the files and folders in `out` named by the glob `patterns` (on rank 0; every
+    rank returns once they are gone): an earlier run's or sweep's own outputs, before a new
+    one writes its own, so that none is left describing another experiment."""
     if comm.rank == 0:
-        for pattern in RUN_OUTPUTS:
+        for pattern in patterns:
             for path in Path(out).glob(pattern):
                 if path.is_dir():
                     shutil.rmtree(path, ignore_errors=True)
@@ -344,7 +351,7 @@ def common_time(held: list[list[float]]) -> float | None:
 FREE_ON_RESUME = ("description", "output.pictures", "output.fields", "output.field_every")
 
 
-def check_resume(old: dict, new: dict, t: float, out: Path) -> None:
+def check_resume(old: dict, new: dict, t: float, out: Path, changes=()) -> None:
     """Refuse to continue the run in `out`, checkpointed at `t` with the scene record `old`,
     with a scene (record `new`) that would mix two experiments: every key must be the same but
     FREE_ON_RESUME, the protocol where it leaves the load d(t) on [0, t] and its kinks before t
@@ -356,15 +363,28 @@ def check_resume(old: dict, new: dict, t: float, out: Path) -> None:
                                      and _same_load(old["protocol"], new["protocol"], t)):
             continue
         fix = f"start a new --out, or resume without --set {key}=... (or with {key} = {a!r})"
+        if not any(key == k or key.startswith(f"{k}.") for k in _override_keys(changes)):
+            fix = (f"start a new --out, or put {key} = {a!r} back where this scene takes it "
+                   "from (the scene file, or the materials, section or indenter file it "
+                   "names), as the run had it")
         if key == "output.times":
             written = [x for x in a if x <= t + 1e-12]
-            if written == [x for x in b if x <= t + 1e-12]:
+            asked = [x for x in b if x <= t + 1e-12]
+            if written == asked:
                 continue
-            fix = (f"keep the output times already written, {written}, in output.times (times "
-                   f"after {t:g} s may be added), or start a new --out")
+            fix = (f"keep the output times up to {t:g} s as they were, {written} (the run is "
+                   f"past them: {sorted(set(asked) - set(written)) or 'none'} cannot be "
+                   f"written now, {sorted(set(written) - set(asked)) or 'none'} are written "
+                   f"already); times after {t:g} s may be added or dropped. Or start a new "
+                   "--out")
         raise InputError(f"--resume {out}: {key}", f"the run there was computed to t = {t:g} s "
                          f"with {key} = {_shown(a)}; this scene has {_shown(b)}. Resuming would "
                          f"mix two experiments (the record: {out}/checkpoint/scene.json).", fix)
+
+
+def _override_keys(changes) -> list[str]:
+    """The keys the overrides (`Scene.changes`: `--set`, `--config`, Python) set."""
+    return [str(text).partition("=")[0].strip() for text in changes]
 
 
 def _shown(value) -> str:

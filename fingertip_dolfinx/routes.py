@@ -85,6 +85,9 @@ def run(scene: Scene | str | Path, out: str | Path, *,
     InputError for arguments that do not fit the route; `ConvergenceError` (files written up
     to the last good step); `RunInterrupted` on SIGINT/SIGTERM (its `route` set too).
     """
+    if isinstance(out, str) and not out.strip():  # Path("") is the working folder
+        raise InputError(f"out {out!r}", "is empty: it would be the working folder.",
+                         'give the folder the results go to, e.g. "results/1pt".')
     say, out = say or _printer(progress), Path(out)
     source, scene = scene, _scene_of(scene, overrides, spacing, fidelity)
     # The route and the options it refuses from the scene as given, before anything is
@@ -268,8 +271,11 @@ def _frequency(scene: Scene, out: Path, frequencies, state, progress, comm) -> F
     from mpi4py import MPI
 
     from .frequency_response import run_frequency_response
+    from .harmonic_options import parse_frequencies
     from .result import FrequencyResult
 
+    if frequencies is not None:  # named as given (the scene's [harmonic] names its own key)
+        frequencies = parse_frequencies(frequencies, f"--frequencies {frequencies}")
     run_frequency_response(scene, out, frequencies=frequencies, state=state, progress=progress,
                            comm=comm or MPI.COMM_WORLD)
     return FrequencyResult(out)

@@ -158,7 +158,7 @@ def completed_summary(scene: Scene, out: Path, comm: MPI.Comm) -> dict | None:
     completed, to the scene's end time); None if there is more to compute. A scene that would
     mix two experiments is refused (`check_resume`)."""
     record, t = Checkpoint(out, comm).stored()
-    check_resume(record, scene_record(scene), t, out)
+    check_resume(record, scene_record(scene), t, out, scene.changes)
     path = out / "summary.json"
     if t < scene.history.end_time - 1e-12 or not path.exists():
         return None
@@ -205,9 +205,13 @@ class Interrupts:
             signal.signal(s, handler)
 
 
-def run_side_by_side(jobs: list[tuple[Scene, Path]], progress: bool = True) -> None:
+def run_side_by_side(jobs: list[tuple[Scene, Path]], progress: bool = True,
+                     resume: bool = False) -> None:
     """Run several scenes, each into its own directory; under `mpiexec -n N` they run side by
-    side, one group of ranks each (N groups at most). Every rank returns when all are done."""
+    side, one group of ranks each (N groups at most). Every rank returns when all are done.
+    With `resume`, a run whose directory holds a checkpoint continues from it (a completed
+    one is kept as it is, one of another scene is refused: `check_resume`) and the others
+    start afresh, so that a sweep stopped part-way picks up where it stopped."""
     world = MPI.COMM_WORLD
     groups = max(1, min(world.size, len(jobs)))
     colour = world.rank % groups
@@ -215,17 +219,23 @@ def run_side_by_side(jobs: list[tuple[Scene, Path]], progress: bool = True) -> N
     try:
         for i, (scene, out) in enumerate(jobs):
             if i % groups == colour:
-                _run_in_group(scene, out, progress and comm.rank == 0, comm)
+                _run_in_group(scene, out, progress and comm.rank == 0, comm, resume)
     finally:
         world.barrier()
         comm.Free()
 
 
-def _run_in_group(scene: Scene, out: Path, progress: bool, comm: MPI.Comm) -> None:
-    """One side-by-side run; a failure is said at once (the group then waits for the others'
-    runs to end before raising it), not only when every group is done."""
+def _run_in_group(scene: Scene, out: Path, progress: bool, comm: MPI.Comm,
+                  resume: bool = False) -> None:
+    """One side-by-side run (resumed if asked and it has a checkpoint); a failure is said at
+    once (the group then waits for the others' runs to end before raising it), not only when
+    every group is done. An interrupt is not: every rank was signalled, the command says it."""
     try:
-        run_scene(scene, out, progress=progress, comm=comm)
+        held = comm.bcast(any((Path(out) / "checkpoint").glob("rank*.npz"))
+                          if comm.rank == 0 and resume else None, root=0)
+        run_scene(scene, out, progress=progress, comm=comm, resume=bool(held))
+    except KeyboardInterrupt:
+        raise
     except BaseException as error:
         if comm.rank == 0:
             print(f"{scene.name} into {out} stopped: {type(error).__name__}: {error}; the "
@@ -282,7 +292,7 @@ class Run:
         record = scene_record(self.scene)
         if resume:
             stored, t = self.checkpoint.stored()
-            check_resume(stored, record, t, self.out)
+            check_resume(stored, record, t, self.out, self.scene.changes)
         else:
             clear_earlier_run(self.out, self.comm)
             self.checkpoint.start(record)

@@ -39,7 +39,7 @@ from .stepping.options import (
     check_linear,
     check_petsc_options,
 )
-from .validation import check_keys, positive
+from .validation import check_keys, numbers, positive
 
 #: The built-in scenes (inside the package: `fingertip_dolfinx/data/scenes/`).
 SCENES_DIR = builtin_dir("scenes")
@@ -113,8 +113,8 @@ class Outputs:
                 find("receptors", self.receptors, "receptor set")
             except InputError as error:
                 raise InputError("output.receptors", error.problem, error.fix) from None
-        object.__setattr__(self, "times", tuple(float(t) for t in self.times))
-        object.__setattr__(self, "depths", tuple(float(d) for d in self.depths))
+        object.__setattr__(self, "times", numbers("output.times", self.times, "s"))
+        object.__setattr__(self, "depths", numbers("output.depths", self.depths, "mm"))
         if any(d <= 0 for d in self.depths):
             raise InputError("output.depths", f"{self.depths}: depths are positive (mm).")
         if not (isinstance(self.profile_points, int) and self.profile_points >= 2):
@@ -243,6 +243,7 @@ class Scene:
             raise InputError(f"{self.name}: protocol", f"the indentation never exceeds "
                              f"{self.history.deepest:g} mm: the indenters would not press.",
                              "give a positive depth (mm after first touch).")
+        self._check_depth_fits()
         three_d = isinstance(self.section, Fingertip3D)
         check_tangential_path(self.history, 3 if three_d else 2, three_d and self.section.half)
         if getattr(self.history, "normal_force", None) is not None and \
@@ -270,6 +271,20 @@ class Scene:
             self.outputs = dataclasses.replace(self.outputs, times=(self.history.end_time,))
         self._check_outputs()
 
+    def _check_depth_fits(self):
+        """An indentation as deep as the soft tissue under the bone is thick (at the pulp's
+        centre, below the bone's lowest point) would crush that tissue to nothing: no tissue
+        allows it, and the run would end in compaction or inverted elements after minutes. A
+        depth in µm read as mm gives it."""
+        plane = getattr(self.section, "section", self.section)  # a 3D fingertip's cross-section
+        tissue = (plane.bone.cy - plane.bone.b) - (plane.outer.cy - plane.outer.b)
+        if not self.history.deepest < tissue:
+            raise InputError(f"{self.name}: protocol", f"the indentation reaches "
+                             f"{self.history.deepest:g} mm, but the soft tissue between the "
+                             f"pulp and the bone is {tissue:g} mm thick: the indenters would "
+                             "crush it to nothing.", f"give the depth in mm, well below "
+                             f"{tissue:g} mm (the paper's: 1 mm).")
+
     def _check_outputs(self):
         end, o = self.history.end_time, self.outputs
         if any(t <= 0 or t > end + 1e-12 for t in o.times):
@@ -281,6 +296,14 @@ class Scene:
             raise InputError(f"{self.name}: output.profile_half_width",
                              f"{o.profile_half_width} mm must lie in (0, {self.section.outer.a}) "
                              "(the section's half-width).")
+        outer = self.section.outer
+        x = np.linspace(-o.profile_half_width, o.profile_half_width, o.profile_points)
+        for d in o.depths:  # a curve leaving the finger would sample nothing there
+            if not np.all(outer.contains(outer.below_palmar(x, d))):
+                raise InputError(f"{self.name}: output.depths", f"a depth curve {d:g} mm "
+                                 f"below the pulp (|x| <= {o.profile_half_width:g} mm) leaves "
+                                 f"the finger ({2 * outer.b:g} mm thick).", "give depths in "
+                                 "mm inside it (e.g. 0.75), or a smaller profile_half_width.")
         z = o.section_z
         if z is None:
             return
@@ -456,8 +479,13 @@ def parse_override(text: str) -> tuple[list[str], object]:
                          "write e.g. --set model.subcutaneous=drained.")
     try:
         value = tomllib.loads(f"v = {raw}")["v"]
-    except tomllib.TOMLDecodeError:
-        value = raw
+    except tomllib.TOMLDecodeError as error:
+        if raw.strip()[:1] in ("[", "{", '"', "'"):  # a list, table or string cut short
+            raise InputError(getattr(text, "source", f"--set {text}"), f"{raw.strip()} is not "
+                             f"a TOML value ({error}).", 'close the brackets or quotes: '
+                             'e.g. --set "output.times=[1, 5]" (quoted for the shell).'
+                             ) from None
+        value = raw  # a bare word: a string (--set model.subcutaneous=drained)
     return key.strip().split("."), value
 
 
@@ -586,6 +614,12 @@ def load_scene(source: str | Path, overrides: Mapping | Sequence[str] = (),
         For any bad value; the message names where it came from (the scene file, a file it
         names, ``--set``, ``--config FILE`` or the Python override), the key and the fix.
     """
+    if not isinstance(source, str | Path):
+        raise InputError(f"load_scene({source!r})", "is not a scene's name or file.",
+                         'give a built-in scene\'s name ("1pt") or a path to a .toml file.')
+    if isinstance(overrides, str) or not isinstance(overrides, Mapping | Sequence):
+        raise InputError(f"overrides={overrides!r}", "is not a table or a list of overrides.",
+                         'give {"protocol": {"depth": 0.5}} or ["protocol.depth=0.5"].')
     path = scene_path(source)
     data = anchor_paths(read_toml(path), path.parent)
     sources = {leaf: str(path) for leaf in _leaves(data)}
@@ -767,9 +801,7 @@ def _indenters(data: dict, where: str) -> list[Indenter]:
 
 def _pair(indenters: list[Indenter], spacing, where: str) -> list[Indenter]:
     """Two copies of the one indenter at x = ±spacing/2 (the two-point test)."""
-    spacing = float(spacing)
-    if spacing <= 0:
-        raise InputError(where, f"must be positive, got {spacing}.")
+    spacing = positive(where, spacing, "mm")  # a NaN or inf, too, is no spacing
     if len(indenters) != 1:
         raise InputError(where, "places a pair: give exactly one indenter.")
     width = getattr(indenters[0], "width", 0.0)

@@ -36,6 +36,14 @@ def number(where: str, value) -> float:
     return float(value)
 
 
+def numbers(where: str, value, unit: str) -> tuple[float, ...]:
+    """A list of finite numbers in `unit` (a single number or a string is not one)."""
+    if not isinstance(value, list | tuple):
+        raise InputError(where, f"must be a list of numbers ({unit}), got {value!r}.",
+                         f"write a list, e.g. {where.rsplit(': ', 1)[-1]} = [1.0].")
+    return tuple(number(where, x) for x in value)
+
+
 def positive(where: str, value, unit: str = "") -> float:
     x = number(where, value)
     if not x > 0:

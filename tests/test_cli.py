@@ -210,3 +210,102 @@ def test_study_fidelity_says_failed_for_a_rung_that_failed(monkeypatch, tmp_path
     assert "largest error  30.00 %" in out
     model, why = fidelity.pick(rows, 0.01)
     assert model == "+ undrained" and "continuum (failed)" in why and "inf" not in why
+
+
+def _run_raising(monkeypatch, error):
+    import fingertip_dolfinx.routes as routes
+
+    def raising(*args, **kwargs):
+        raise error
+
+    monkeypatch.setattr(routes, "run", raising)
+
+
+def test_ctrl_c_before_the_first_step_is_one_line_and_exit_130(monkeypatch, tmp_path, capsys):
+    # Ctrl-C while the libraries load or the scene is read (before the run's own handlers):
+    # a KeyboardInterrupt, which ended the command with a traceback.
+    _run_raising(monkeypatch, KeyboardInterrupt())
+    try:
+        code = main(["run", "1pt", "--out", str(tmp_path), "--quiet"])
+    except KeyboardInterrupt:
+        code = "a traceback"
+    assert code == 130
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "interrupted by SIGINT outside a time step" in err
+
+
+def test_a_run_stopped_in_its_first_step_says_to_start_again_not_resume(monkeypatch, tmp_path,
+                                                                        capsys):
+    # Stopped within the first step's Newton solve, a run has no checkpoint: the line used to
+    # say "continue with: ... --resume", which --resume then refuses.
+    from fingertip_dolfinx.errors import RunInterrupted
+
+    stop = RunInterrupted(0.0, "SIGTERM", {})
+    stop.route = "time"
+    _run_raising(monkeypatch, stop)
+    assert main(["run", "1pt", "--out", str(tmp_path), "--quiet"]) == 130
+    err = capsys.readouterr().err.strip()
+    assert "before the first step was done: there is nothing to resume" in err
+    assert err.endswith(f"fingertip run 1pt --out {tmp_path} --quiet")
+
+
+def test_sigterm_while_starting_is_one_line_not_petscs_abort(tmp_path):
+    # PETSc's own SIGTERM handler (installed when petsc4py starts PETSc) printed
+    # "PETSC ERROR: Caught signal number 15" and called MPI_Abort.
+    code = ("import os, signal, time\n"
+            "import fingertip_dolfinx.routes as routes\n"
+            "from fingertip_dolfinx.cli import main\n"
+            "def run(*args, **kwargs):\n"
+            "    from petsc4py import PETSc\n"
+            "    os.kill(os.getpid(), signal.SIGTERM)\n"
+            "    time.sleep(30)\n"
+            "routes.run = run\n"
+            f"raise SystemExit(main(['run', '1pt', '--out', {str(tmp_path)!r}, '--quiet']))\n")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            timeout=120)
+    assert result.returncode == 130, result.stderr
+    assert "PETSC ERROR" not in result.stderr
+    assert "interrupted by SIGTERM outside a time step" in result.stderr
+
+
+@pytest.mark.parametrize("command", [["run", "1pt"], ["sweep", "1pt", "--param",
+                                                       "protocol.depth", "--values", "0.5"],
+                                     ["mesh"]])
+def test_an_empty_out_is_refused_not_the_working_folder(command, tmp_path, monkeypatch,
+                                                        capsys):
+    # --out "$OUT" with OUT unset was Path("") = ".": the run wrote into the working folder,
+    # first removing an earlier run's files there by their names.
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "summary.json").write_text("{}")
+    assert main([*command, "--out", "", "--quiet"] if command[0] != "mesh"
+                else [*command, "--out", ""]) == 2
+    assert "argument --out: is empty" in capsys.readouterr().err
+    assert [p.name for p in tmp_path.iterdir()] == ["summary.json"]
+
+
+def test_an_empty_out_is_refused_from_python(tmp_path, monkeypatch):
+    import fingertip_dolfinx as ft
+    from fingertip_dolfinx.errors import InputError
+
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(InputError, match="out '': is empty"):
+        ft.run("1pt", "", progress=False)
+    assert not list(tmp_path.iterdir())
+
+
+def test_ctrl_c_while_starting_under_mpi_ends_every_rank(monkeypatch, tmp_path, capsys):
+    # Under mpiexec a rank stopped while starting left the others waiting in a collective for
+    # it (measured: a hang, or a SEGV as it finalised): it must end them all.
+    import fingertip_dolfinx.cli as cli
+
+    class World:
+        size, aborted = 2, []
+
+        def Abort(self, code):
+            self.aborted.append(code)
+
+    monkeypatch.setattr(cli, "_world", World)
+    _run_raising(monkeypatch, KeyboardInterrupt("SIGTERM"))
+    assert main(["run", "1pt", "--out", str(tmp_path), "--quiet"]) == 130
+    assert World.aborted == [130]
+    assert "interrupted by SIGTERM outside a time step" in capsys.readouterr().err

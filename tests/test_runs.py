@@ -192,7 +192,9 @@ def test_what_a_resume_may_change():
                       (["output.depths=[0.5]"], "output.depths")):
         with pytest.raises(InputError, match=key):
             resumed(*sets)
-    with pytest.raises(InputError, match=r"keep the output times already written, \[0.2\]"):
+    with pytest.raises(InputError, match=r"keep the output times up to 0.5 s as they were, "
+                       r"\[0.2\] \(the run is past them: \[0.3\] cannot be written now, "
+                       r"\[0.2\] are written already\)"):
         resumed("output.times=[0.3, 1.0]")
 
 
@@ -400,3 +402,87 @@ def test_a_side_by_side_run_that_fails_says_so_at_once_then_raises(monkeypatch, 
         runner.run_side_by_side([(scene, tmp_path / "a")], progress=False)
     said = capsys.readouterr().err
     assert "1pt" in said and str(tmp_path / "a") in said and "timed out" in said
+
+
+def test_a_stopped_sweep_leaves_no_earlier_table_and_resumes_its_runs(tmp_path, monkeypatch,
+                                                                       capsys):
+    # A sweep stopped part-way into the folder of an earlier one left the earlier sweep.csv,
+    # summary.json and sweep.png beside runs of another experiment; and a sweep had no way to
+    # continue its runs (run again, it started every one afresh).
+    import fingertip_dolfinx.runner as runner
+    from fingertip_dolfinx.errors import RunInterrupted
+
+    for name in ("sweep.csv", "summary.json", "sweep.png", "notes.txt"):
+        (tmp_path / name).write_text("an earlier sweep's\n")
+    (tmp_path / "k0-x1" / "checkpoint").mkdir(parents=True)
+    (tmp_path / "k0-x1" / "checkpoint" / "rank0.npz").write_bytes(b"")
+    calls = []
+
+    def stopped(scene, out, *, resume=False, **kwargs):
+        calls.append((out.name, resume))
+        if out.name == "k0-x10":
+            raise RunInterrupted(0.3, "SIGINT", {})
+
+    monkeypatch.setattr(runner, "run_scene", stopped)
+    argv = ["sweep", "1pt", "--param", "materials.subcutaneous.permeability.k0", "--factors",
+            "1", "10", "--out", str(tmp_path), "--quiet"]
+    assert main([*argv, "--resume"]) == 130
+    assert calls == [("k0-x1", True), ("k0-x10", False)]  # k0-x10 has no checkpoint: afresh
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["k0-x1", "notes.txt"]
+    err = capsys.readouterr().err.strip()
+    assert err.endswith(f"continue with: fingertip {' '.join(argv)} --resume")
+
+
+@pytest.mark.parametrize("study, report", [("fidelity", "fidelity.md"),
+                                           ("accuracy", "accuracy.md")])
+def test_a_stopped_study_leaves_no_earlier_report(study, report, tmp_path, monkeypatch):
+    # A study stopped part-way into the folder of an earlier one left the earlier report
+    # (accuracy.md, fidelity.md, their tables and charts) beside runs of this one.
+    import fingertip_dolfinx.runner as runner
+
+    def stopped(scene, out, **kwargs):
+        raise RunInterrupted(0.3, "SIGTERM", {})
+
+    monkeypatch.setattr(runner, "run_scene", stopped)
+    (tmp_path / report).write_text("an earlier study's\n")
+    (tmp_path / "notes.txt").write_text("mine\n")
+    assert main(["study", study, "--scene", "1pt", "--out", str(tmp_path)]) == 130
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]
+
+
+def test_a_value_changed_in_a_file_is_named_as_such_on_resume():
+    # A materials file edited between the run and its --resume: refused, but the fix said
+    # "resume without --set materials.bone.E=...", which no --set had given.
+    base = scene_record(load_scene("1pt", SETS))
+    edited = scene_record(load_scene("1pt", [*SETS, "materials.bone.E=18000"]))
+    with pytest.raises(InputError, match=r"put materials.bone.E = 17000.0 back where this "
+                       r"scene takes it from \(the scene file, or the materials"):
+        check_resume(base, edited, 0.5, Path("D"))
+    with pytest.raises(InputError, match=r"resume without --set materials.bone.E=\.\.\."):
+        check_resume(base, edited, 0.5, Path("D"), ["materials.bone.E=18000"])
+    with pytest.raises(InputError, match=r"resume without --set indenters.0.width"):
+        check_resume(base, scene_record(load_scene("1pt", [*SETS, "indenters.0.width=0.8"])),
+                     0.5, Path("D"), ['indenters=[{file = "bar", width = 0.8}]'])
+
+
+def test_a_sweep_table_cut_short_leaves_no_half_file(tmp_path, monkeypatch):
+    # sweep.csv was written in place: a kill (or an error) part-way left half a table.
+    import fingertip_dolfinx.studies.parameters as parameters
+
+    class Cut(Exception):
+        pass
+
+    class Writer:
+        def __init__(self, f, **kwargs):
+            self.f = f
+
+        def writeheader(self):
+            self.f.write("label,value\n")
+
+        def writerow(self, row):
+            raise Cut
+
+    monkeypatch.setattr(parameters.csv, "DictWriter", Writer)
+    with pytest.raises(Cut):
+        parameters._write([{"label": "k0-x1", "value": 1.0}], tmp_path)
+    assert not list(tmp_path.iterdir())

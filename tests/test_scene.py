@@ -160,11 +160,12 @@ def test_two_point_sweep_reproduces_the_papers_trends(tmp_path_factory):
 
 
 def test_an_impossible_indentation_stops_clearly_and_keeps_the_results(tmp_path):
-    """9 mm into a pulp that is 7 mm thick down to the bone: the run must stop with a message
-    that says when, where and why, and leave every accepted step on disk."""
+    """6.9 mm into a pulp that is 7 mm thick down to the bone (Newton fails near 2 mm): the run
+    must stop with a message that says when, where and why, and leave every accepted step on
+    disk. (9 mm, deeper than the tissue, is refused before the run.)"""
     from fingertip_dolfinx.errors import ConvergenceError
 
-    scene = _one_point(["protocol.depth=9.0", "steps.dt_initial=0.01", "steps.dt_max=0.05",
+    scene = _one_point(["protocol.depth=6.9", "steps.dt_initial=0.01", "steps.dt_max=0.05",
                         "steps.dt_min=0.005", "steps.max_cuts=2"])
     with pytest.raises(ConvergenceError) as error:
         run_scene(scene, tmp_path, progress=False, comm=MPI.COMM_SELF)
@@ -176,6 +177,21 @@ def test_an_impossible_indentation_stops_clearly_and_keeps_the_results(tmp_path)
     assert len(h["time_s"]) >= 1 and h["time_s"][-1] == pytest.approx(saved, rel=1e-5)
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["converged"] is False and summary["failure"] == message
+
+
+def test_an_indentation_deeper_than_the_tissue_is_refused_before_the_run():
+    # 9 mm (or 1000: µm read as mm) into 7 mm of tissue under the bone was accepted, and the
+    # run failed minutes later in Newton.
+    with pytest.raises(InputError, match=r"reaches 1000 mm, but the soft tissue between the "
+                       r"pulp and the bone is 7 mm thick.*Fix: give the depth in mm"):
+        load_scene("1pt", ["protocol.depth=1000"])
+    assert load_scene("1pt", ["protocol.depth=6.9"]).history.deepest == 6.9
+
+
+def test_a_depth_curve_outside_the_finger_is_refused():
+    with pytest.raises(InputError, match=r"output.depths: a depth curve 100 mm below the pulp "
+                       r".* leaves the finger \(14 mm thick\)"):
+        load_scene("1pt", ["output.depths=[100]"])
 
 
 def test_shear_variation_is_the_peak_to_peak_around_each_point():
@@ -320,3 +336,13 @@ def test_a_relation_broken_by_an_override_names_the_override(scene, text, proble
     with pytest.raises(InputError) as error:
         load_scene(scene, [Override(text, f"--set {text}")])
     assert str(error.value).startswith(f"--set {text}: {problem}"), str(error.value)
+
+
+@pytest.mark.parametrize("source, overrides, where", [
+    (None, (), "load_scene(None)"), ("1pt", 5, "overrides=5"),
+    ("1pt", "protocol.depth=0.5", "overrides='protocol.depth=0.5'")])
+def test_load_scene_of_a_wrong_kind_is_an_input_error(source, overrides, where):
+    # Were TypeErrors from deep inside (a Path of None, iterating an int), or a string of
+    # overrides read character by character.
+    with pytest.raises(InputError, match=re.escape(where)):
+        load_scene(source, overrides)

@@ -31,9 +31,26 @@ from .kinematics import (
 # validation helpers
 
 
+#: Stiffer than any solid (MPa): diamond's Young's modulus is about 1.05e6 MPa (1.05 TPa). A
+#: modulus above it is a value in Pa (1 MPa = 1e6 Pa; the bone's 17 GPa in Pa is 1.7e10).
+STIFFEST_SOLID = 1e6
+#: Stiffer in shear than any soft tissue (MPa): tendon, the stiffest, has a Young's modulus of
+#: about 1.2 GPa (Maganaris and Paul, J. Physiol. 521 (1999) 307-313), a shear modulus of
+#: about 400 MPa (nearly incompressible). The paper's skin has mu0 = 1.16e-3 MPa, which in Pa
+#: is 1160: a hyperfoam (a soft tissue's law) with mu0 above this was given in Pa.
+STIFFEST_SOFT_TISSUE = 1e3
+
+
+def _not_in_pa(where: str, what: str, value: float, limit: float, than: str) -> None:
+    if value > limit:
+        raise InputError(where, f"{what} = {value:.6g} MPa is stiffer than {than} ({limit:g} "
+                         "MPa): a value in Pa?", "give moduli in MPa (1 MPa = 1e6 Pa).")
+
+
 def _floats(where: str, name: str, value) -> tuple[float, ...]:
     if isinstance(value, (str, bytes)) or not isinstance(value, Sequence | np.ndarray):
-        raise InputError(where, f"'{name}' must be a list of numbers, got {value!r}.")
+        raise InputError(where, f"'{name}' must be a list of numbers, got {value!r}.",
+                         f"write {name} = [...], one number per term.")
     try:
         out = tuple(float(v) for v in value)
     except (TypeError, ValueError):
@@ -168,6 +185,8 @@ class Hyperfoam:
             raise InputError(
                 w, f"initial shear modulus mu0 = sum(mu) = {self.mu0:.6g} MPa is not positive: "
                 "the material is unstable at small strain.", "check the signs of 'mu'.")
+        _not_in_pa(w, "initial shear modulus mu0 = sum(mu)", self.mu0, STIFFEST_SOFT_TISSUE,
+                   "any soft tissue")
         # One ν: K0 = 2μ0(1 + ν)/(3(1 − 2ν)) > 0 follows from μ0 > 0. Per-term ν_i: it does
         # not (a negative μ_i with a large β_i can make it negative), so it is checked.
         if not self.K0 > 0.0:
@@ -305,6 +324,7 @@ class LinearElastic:
         E, nu = _float(self.where, "E", self.E), _float(self.where, "nu", self.nu)
         if not E > 0:
             raise InputError(self.where, f"Young's modulus 'E' = {E} MPa is not positive.")
+        _not_in_pa(self.where, "Young's modulus 'E'", E, STIFFEST_SOLID, "any solid")
         if not -1.0 < nu < 0.5:
             raise InputError(self.where, f"'nu' = {nu} is outside (-1, 0.5).")
         object.__setattr__(self, "E", E)

@@ -9,7 +9,9 @@ are sized (`control`: by Newton's effort or by the local error estimate; control
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import numbers
 from dataclasses import asdict, dataclass, field
 
 from ..errors import InputError
@@ -179,6 +181,7 @@ class StepOptions:
     safety: float = 0.9  # the next step aims at safety × the tolerance
 
     def __post_init__(self):
+        self._check_types()
         if not 0 < self.dt_min <= self.dt_initial <= self.dt_max:
             raise ValueError("need 0 < dt_min <= dt_initial <= dt_max")
         if not (self.growth >= 1 and 0 < self.cut < 1 and self.max_cuts >= 0):
@@ -213,6 +216,27 @@ class StepOptions:
             raise ValueError(f"BDF2 is unstable for step ratios above 1 + √2: need growth and "
                              f"hold_growth < {BDF2_GROWTH_LIMIT:.4f}, got {self.growth} and "
                              f"{self.hold_growth}")
+
+    def _check_types(self) -> None:
+        """Each key a finite number, a whole number or a switch, as its default is: a text
+        fails the comparisons below with Python's words, a fraction of a count or a NaN
+        passes them."""
+        for f in dataclasses.fields(self):
+            value, default = getattr(self, f.name), f.default
+            if isinstance(default, bool):
+                ok, what = isinstance(value, bool), "true or false"
+            elif isinstance(default, int):
+                ok = isinstance(value, numbers.Integral) and not isinstance(value, bool)
+                what = "a whole number"
+            elif isinstance(default, float):
+                ok = (isinstance(value, numbers.Real) and not isinstance(value, bool)
+                      and math.isfinite(value))
+                what = "a finite number"
+            else:
+                continue
+            if not ok:
+                raise InputError(f"steps.{f.name}", f"must be {what}, got {value!r}.",
+                                 f"write e.g. {f.name} = {str(default).lower()}.")
 
     def _check_carry(self) -> None:
         """`jacobian_carry`: a count of Newton iterations, and only with `jacobian_reuse`,

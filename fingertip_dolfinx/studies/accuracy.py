@@ -48,6 +48,7 @@ from mpi4py import MPI
 
 from ..errors import ConvergenceError, on_root
 from ..keys import KEY_OUTPUTS, KEYS, TIME_COLUMNS, check_scene, key_outputs
+from ..outputs import remove_outputs
 
 TOL = 0.01  # "1 % on every key output"
 
@@ -297,6 +298,10 @@ COARSE_NOTE = ("Coarse study: max_size and bone_size are held at a coarse value 
                "on the two coarser ones; Δt is refined on the middle mesh.")
 
 
+#: The study's own report files in its folder.
+ACCURACY_OUTPUTS = ("accuracy.csv", "accuracy.json", "accuracy.md", "accuracy.png")
+
+
 def run_accuracy_study(scene_name: str, out: Path, *, levels: int = 3, coarse: bool = True,
                        overrides=(), progress: bool = False, plan: Plan | None = None,
                        adapt_tol: float | None = None) -> dict:
@@ -318,6 +323,8 @@ def run_accuracy_study(scene_name: str, out: Path, *, levels: int = 3, coarse: b
     families, notes = families_for(scene)
     if plan is COARSE:
         notes.append(COARSE_NOTE)
+    # An earlier study's report must not stay beside these runs if this study stops part-way.
+    remove_outputs(out, ACCURACY_OUTPUTS, comm)
     runs = _Runs(scene_name, tuple(base_overrides), out, progress, comm)
     dt = (scene.steps.dt_initial, scene.steps.dt_max)
     rows = _mesh_rows(runs, families, sizes, plan, dt)

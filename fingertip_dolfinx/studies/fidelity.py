@@ -24,6 +24,7 @@ from mpi4py import MPI
 
 from ..errors import ConvergenceError, InputError
 from ..keys import KEY_OUTPUTS, KEYS, TIME_COLUMNS, check_scene, key_outputs, relative_errors
+from ..outputs import remove_outputs
 
 LADDER = (
     ("continuum", ["model.tissue=\"continuum\""]),
@@ -40,6 +41,10 @@ def _slug(name: str) -> str:
     return name.replace("+ ", "plus-").replace(", ", "-").replace(" ", "-")
 
 
+#: The study's own report files in its folder.
+FIDELITY_OUTPUTS = ("fidelity.csv", "fidelity.md", "fidelity.png")
+
+
 def run_fidelity_study(scene_name: str, out: Path, overrides=(), progress: bool = True) -> list:
     """Run the ladder for `scene_name` into out/<rung>/; write fidelity.csv, .md and a chart."""
     from ..runner import run_scene
@@ -47,6 +52,8 @@ def run_fidelity_study(scene_name: str, out: Path, overrides=(), progress: bool 
 
     comm = MPI.COMM_WORLD
     out = Path(out)
+    # An earlier study's report must not stay beside these runs if this study stops part-way.
+    remove_outputs(out, FIDELITY_OUTPUTS, comm)
     results, failures = {}, {}
     for name, settings in LADDER:
         scene = load_scene(scene_name, list(overrides) + settings)

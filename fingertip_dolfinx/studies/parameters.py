@@ -22,14 +22,18 @@ from mpi4py import MPI
 
 from ..errors import InputError, on_root
 from ..keys import KEY_OUTPUTS, KEYS, TIME_COLUMNS, check_scene, key_outputs
-from ..outputs import read_csv, write_json
+from ..outputs import read_csv, remove_outputs, whole, write_json
 from ..plotting.figures import display_unit
+
+#: The files a parameter sweep writes beside its runs' folders.
+SWEEP_OUTPUTS = ("sweep.csv", "summary.json", "sweep.png")
 
 
 def parameter_sweep(scene_name: str, key: str, out: Path, *, values: Sequence | None = None,
                     factors: Sequence[float] | None = None, overrides: Sequence[str] = (),
-                    progress: bool = True) -> dict:
-    """Run `scene_name` once per value of `key`; returns (and writes) the table of key outputs."""
+                    progress: bool = True, resume: bool = False) -> dict:
+    """Run `scene_name` once per value of `key`; returns (and writes) the table of key outputs.
+    `resume`: continue the runs of a sweep stopped part-way (`run_side_by_side`)."""
     from ..runner import run_side_by_side
     from ..scene import load_scene, scene_record, toml_value
 
@@ -44,7 +48,9 @@ def parameter_sweep(scene_name: str, key: str, out: Path, *, values: Sequence | 
             for label, v in zip(labels, settings)]
     for scene, _ in jobs:  # before any run: every run must write what the key outputs read
         check_scene(scene, f"sweep {scene_name} --param {key}")
-    run_side_by_side(jobs, progress=progress)
+    # An earlier sweep's table must not stay beside these runs if this sweep stops part-way.
+    remove_outputs(out, SWEEP_OUTPUTS, MPI.COMM_WORLD)
+    run_side_by_side(jobs, progress=progress, resume=resume)
 
     def tabulate() -> dict:  # on rank 0: the table, its files and its figure
         rows = [{"label": label, "value": v, **key_outputs(out / label)}
@@ -91,7 +97,7 @@ def scaled_value(value, factor: float, key: str):
 
 def _write(rows: list[dict], out: Path) -> None:
     columns = ["label", "value", *KEYS, *TIME_COLUMNS, "wall_time_s", "dofs"]
-    with (out / "sweep.csv").open("w", newline="") as f:
+    with whole(out / "sweep.csv") as tmp, tmp.open("w", newline="") as f:  # no half table
         writer = csv.DictWriter(f, fieldnames=columns, extrasaction="ignore")
         writer.writeheader()
         for row in rows:

@@ -43,7 +43,7 @@ import numpy as np
 from mpi4py import MPI
 
 from ..errors import on_root
-from ..outputs import read_csv, write_json
+from ..outputs import read_csv, remove_outputs, whole, write_json
 from ..plotting.figures import plot_spacing_profiles
 
 QUANTITIES = ("e11", "e22", "e12", "u2", "sed")
@@ -148,12 +148,18 @@ def population_threshold(spacings, ratios, fraction: float = RESOLVED) -> dict:
     return {"smallest_resolved_mm": smallest, "threshold_mm": crossing}
 
 
+#: The files a spacing sweep writes beside its runs' folders.
+SWEEP_OUTPUTS = ("summary.json", "normalized_variation.csv", "normalized_variation.png",
+                 "profiles_by_spacing.png")
+
+
 def run_sweep(scene_name: str, spacings, out: Path, overrides=(), progress=True,
-              population: bool = True, spots: bool = False) -> dict:
+              population: bool = True, spots: bool = False, resume: bool = False) -> dict:
     """Run the scene at every spacing side by side, then the strain threshold and (with
     `population`: the runs sample the default receptor set) the SA1 population's. With
     `spots`, each spacing's mesh gets a fine disc (`section.mesh.spots`) at the three points
-    the variations are read at (`sweep_scenes`)."""
+    the variations are read at (`sweep_scenes`). `resume`: continue the runs of a sweep
+    stopped part-way (`run_side_by_side`)."""
     from ..runner import run_side_by_side
 
     world = MPI.COMM_WORLD
@@ -162,8 +168,10 @@ def run_sweep(scene_name: str, spacings, out: Path, overrides=(), progress=True,
     if population and not any(str(o).startswith("output.receptors") for o in overrides):
         overrides.append('output.receptors="default"')
     scenes = sweep_scenes(scene_name, spacings, overrides, spots)
+    # An earlier sweep's table must not stay beside these runs if this sweep stops part-way.
+    remove_outputs(out, SWEEP_OUTPUTS, world)
     run_side_by_side([(scene, out / f"d{d:g}") for d, scene in zip(spacings, scenes)],
-                     progress=progress)
+                     progress=progress, resume=resume)
 
     result = on_root(world, lambda: _tabulate(scenes, spacings, out))  # rank 0 reads, writes
     write_json(out / "summary.json", result, world)
@@ -184,7 +192,7 @@ def _tabulate(scenes: list, spacings: Sequence[float], out: Path) -> dict:
             table[q].append(v[q])
     plot_spacing_profiles(profiles, out / "profiles_by_spacing.png", t, depth_mm,
                           title=f"{scene.name}: two bars at spacing d")
-    with (out / "normalized_variation.csv").open("w") as f:
+    with whole(out / "normalized_variation.csv") as tmp, tmp.open("w") as f:  # no half table
         f.write("spacing_mm," + ",".join(QUANTITIES) + "\n")
         for i, d in enumerate(spacings):
             f.write(f"{d:g}," + ",".join(f"{table[q][i]:.8g}" for q in QUANTITIES) + "\n")
