@@ -85,10 +85,7 @@ def run(scene: Scene | str | Path, out: str | Path, *,
     InputError for arguments that do not fit the route; `ConvergenceError` (files written up
     to the last good step); `RunInterrupted` on SIGINT/SIGTERM (its `route` set too).
     """
-    if isinstance(out, str) and not out.strip():  # Path("") is the working folder
-        raise InputError(f"out {out!r}", "is empty: it would be the working folder.",
-                         'give the folder the results go to, e.g. "results/1pt".')
-    say, out = say or _printer(progress), Path(out)
+    say, out = say or _printer(progress), _out_folder(out)
     source, scene = scene, _scene_of(scene, overrides, spacing, fidelity)
     # The route and the options it refuses from the scene as given, before anything is
     # computed (the ladder of fidelity="auto" too: its model changes the physics, not the route)
@@ -136,6 +133,15 @@ def route_of(scene: Scene, *, tol: float | None = None, max_levels: int | None =
     if tol is not None or max_levels is not None:
         return "adaptive"
     return "time"
+
+
+def _out_folder(out: str | Path) -> Path:
+    """`out` as a Path; an empty string (an unset shell variable) is refused: Path("") is the
+    working folder, where a fresh run would remove an earlier run's files by name."""
+    if isinstance(out, str) and not out.strip():
+        raise InputError(f"out {out!r}", "is empty: it would be the working folder.",
+                         'give the folder the results go to, e.g. "results/1pt".')
+    return Path(out)
 
 
 def _scene_of(scene, overrides, spacing, fidelity: str) -> Scene:
