@@ -176,7 +176,6 @@ class ModelOptions:
                 "use displacement_degree = 2.",
             )
 
-
     def _check_contact_numbers(self) -> None:
         """γ0 > 0 (a zero or negative penalty pulls the skin into the indenter), a smoothing
         width >= 0 (mm) and a compaction margin in [0, 1) (J starts at 1 above φ0 + margin)."""
