@@ -308,20 +308,15 @@ def _run_or_check(args) -> int:
 
 
 def _check_run_keys(args, overrides) -> None:
-    """--check of a run whose route compares key outputs (the adaptive loop, --fidelity auto):
-    the scene must write what they read, as the run itself checks before its first step."""
-    from .keys import check_scene
-    from .routes import route_of
+    """--check of a run: what the run itself refuses before its first step (`check_route`:
+    options off its route, key outputs its comparisons cannot read) is refused here too."""
+    from .routes import check_route
     from .scene import load_scene
 
-    scene = load_scene(args.scene, overrides, spacing=args.spacing)
-    auto = args.fidelity == "auto"
-    if auto and args.fidelity_table is None:  # the ladder is run first: a fidelity study
-        check_scene(scene, f"{scene.name}: --fidelity auto")
-    # with --fidelity auto, --tol is the model's tolerance; the mesh follows [accuracy] tol
-    if route_of(scene, tol=None if auto else args.tol, max_levels=args.max_levels,
-                frequencies=args.frequencies, state=args.state) == "adaptive":
-        check_scene(scene, f"{scene.name}: the adaptive loop (--tol)")
+    check_route(load_scene(args.scene, overrides, spacing=args.spacing), tol=args.tol,
+                max_levels=args.max_levels, frequencies=args.frequencies, state=args.state,
+                fidelity=args.fidelity, fidelity_table=args.fidelity_table,
+                resume=args.resume)
 
 
 def _need_out(args) -> None:

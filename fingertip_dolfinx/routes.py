@@ -87,12 +87,9 @@ def run(scene: Scene | str | Path, out: str | Path, *,
     """
     say, out = say or _printer(progress), _out_folder(out)
     source, scene = scene, _scene_of(scene, overrides, spacing, fidelity)
-    # The route and the options it refuses from the scene as given, before anything is
-    # computed (the ladder of fidelity="auto" too: its model changes the physics, not the route)
-    kind = route_of(scene, tol=None if fidelity == "auto" else tol, max_levels=max_levels,
-                    frequencies=frequencies, state=state)
-    _refuse_off_route(kind, {"resume": resume, "tol": tol, "max_levels": max_levels,
-                             "fidelity": fidelity})
+    kind = check_route(scene, tol=tol, max_levels=max_levels, frequencies=frequencies,
+                       state=state, fidelity=fidelity, fidelity_table=fidelity_table,
+                       resume=resume)
     mesh_tol = None if fidelity == "auto" else tol  # auto: the mesh by [accuracy] tol
     if fidelity == "auto":
         scene = _with_picked_model(source, out, overrides, spacing, tol, fidelity_table,
@@ -133,6 +130,29 @@ def route_of(scene: Scene, *, tol: float | None = None, max_levels: int | None =
     if tol is not None or max_levels is not None:
         return "adaptive"
     return "time"
+
+
+def check_route(scene: Scene, *, tol: float | None = None, max_levels: int | None = None,
+                frequencies=None, state: str | None = None, fidelity: str = "scene",
+                fidelity_table=None, resume: bool = False) -> str:
+    """The route `run` takes for `scene` (`route_of`), refused before anything is computed if
+    it cannot be taken: an option off the route (`_refuse_off_route`), or a scene whose key
+    outputs the route compares but cannot read (`keys.check_scene`: the adaptive loop's levels,
+    the fidelity ladder of `fidelity="auto"`). `run` and `fingertip run --check` ask the same.
+    The route is the scene's as given: the model "auto" picks changes the physics, not the
+    route (with "auto", `tol` is the model's tolerance and the mesh follows `[accuracy] tol`)."""
+    from .keys import check_scene
+
+    auto = fidelity == "auto"
+    kind = route_of(scene, tol=None if auto else tol, max_levels=max_levels,
+                    frequencies=frequencies, state=state)
+    _refuse_off_route(kind, {"resume": resume, "tol": tol, "max_levels": max_levels,
+                             "fidelity": fidelity})
+    if auto and fidelity_table is None:  # the ladder is run first: a fidelity study
+        check_scene(scene, f"{scene.name}: --fidelity auto")
+    if kind == "adaptive":
+        check_scene(scene, f"{scene.name}: the adaptive loop (--tol)")
+    return kind
 
 
 def _out_folder(out: str | Path) -> Path:
